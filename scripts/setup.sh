@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Installs the Debian packages causaldrive needs; does nothing when they are all present.
+set -euo pipefail
+
+packages=(
+  build-essential cmake pkg-config
+  sumo sumo-tools
+  libtorch-dev libopenblas0-openmp
+  libeigen3-dev libboost-math-dev
+  libhdf5-dev
+  libtomlplusplus-dev libcli11-dev libspdlog-dev nlohmann-json3-dev
+  libstb-dev
+  libgtest-dev libbenchmark-dev
+  python3 python3-numpy python3-h5py python3-statsmodels python3-torch
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  status=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)
+  [[ "$status" == "install ok installed" ]] || missing+=("$p")
+done
+
+if [[ ${#missing[@]} -eq 0 ]]; then
+  exit 0
+fi
+
+echo "setup: installing ${#missing[@]} missing package(s): ${missing[*]}"
+sudo=""
+if [[ $(id -u) -ne 0 ]]; then
+  command -v sudo >/dev/null || { echo "setup: need root or sudo to install: ${missing[*]}" >&2; exit 1; }
+  sudo="sudo"
+fi
+export DEBIAN_FRONTEND=noninteractive
+$sudo apt-get update -q
+$sudo apt-get install -y -q --no-install-recommends "${missing[@]}"

@@ -1,0 +1,86 @@
+#pragma once
+// Every setting of a run, read from a TOML config (configs/quickstart.toml shows them all with
+// their defaults). Unknown keys and out-of-range values are errors naming file and key.
+#include <cstdint>
+#include <string>
+
+#include <nlohmann/json_fwd.hpp>
+
+#include "sense/bev.hpp"
+
+namespace cd {
+
+struct TrafficDensity {
+  double cars_per_km = 0;  // background cars per km of driving lane
+  double peds_per_km = 0;  // pedestrians per km of driving lane
+};
+
+struct WorldSettings {
+  std::string town = "town-a";  // a town name (towns/*.toml) or a path to a .net.xml
+  std::string traffic = "regular";  // empty | regular | dense
+  double dt = 0.1;                  // s per step
+  double warmup_s = 60;             // background traffic runs this long before the ego enters
+  TrafficDensity regular{4.0, 3.0};
+  TrafficDensity dense{9.0, 8.0};
+  double view_radius = 60;      // m, actors farther than this are not sensed or checked
+  double command_horizon = 30;  // m, the junction command is given this far ahead
+  double path_free_margin = 6;  // m checked beyond the stopping distance for "path free"
+};
+
+// Longitudinal vehicle model of the ego: a = throttle * max_accel * (1 - v / max_speed)
+// - brake * max_decel - rolling - drag * v^2, speed clamped to [0, max_speed].
+struct EgoSettings {
+  double length = 4.5;
+  double width = 1.8;
+  double max_accel = 3.5;   // m/s^2 at standstill, full throttle
+  double max_decel = 8.0;   // m/s^2, full brake
+  double max_speed = 20.0;  // m/s
+  double rolling = 0.1;     // m/s^2, when moving
+  double drag = 0.0008;     // 1/m
+};
+
+struct ExpertSettings {
+  double cruise_speed = 10.0;   // m/s, never above the lane's limit
+  double turn_speed = 5.0;      // m/s through turns
+  double comfort_decel = 3.0;   // m/s^2, planned braking
+  double min_gap = 3.5;         // m, standstill gap to the leader
+  double headway = 1.2;         // s
+  double stop_margin = 1.0;     // m before a stop line
+  double yield_time = 5.0;      // s, priority traffic closer than this in time is waited for
+  double ped_margin = 1.0;      // m, lateral margin around the path for pedestrians
+  double ped_lookahead_s = 1.5; // s, pedestrians are also checked where they will be
+  double gain = 2.0;            // 1/s, speed tracking gain
+};
+
+struct NoiseSettings {
+  bool enabled = false;
+  double rate_per_s = 0.05;  // expected starts of a noise window per second
+  double min_s = 0.5;        // window length range
+  double max_s = 1.5;
+};
+
+struct CollectSettings {
+  int episodes = 4;
+  uint64_t seed = 0;
+  int workers = 2;
+  std::string out = "runs/quickstart/data";
+  double min_route_m = 300;
+  double max_route_m = 700;
+  double max_episode_s = 0;  // 0: the benchmark timeout (route at 5 km/h + 20 s)
+  NoiseSettings noise;
+};
+
+struct Settings {
+  std::string source = "(built-in defaults)";  // where they came from
+  WorldSettings world;
+  EgoSettings ego;
+  BevConfig bev;
+  ExpertSettings expert;
+  CollectSettings collect;
+};
+
+Settings load_settings(const std::string& path);  // throws ConfigError
+nlohmann::json settings_to_json(const Settings& s);
+const TrafficDensity& traffic_density(const WorldSettings& w);
+
+}  // namespace cd

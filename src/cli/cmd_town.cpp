@@ -1,0 +1,90 @@
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <vector>
+
+#include "cli/commands.hpp"
+#include "cli/common.hpp"
+#include "core/error.hpp"
+#include "world/town.hpp"
+#include "world/world.hpp"
+
+namespace cd::cli {
+
+namespace {
+
+// BEV frames at a few driving lanes spread over the network, tiled into one picture.
+void write_preview(const Settings& settings, const std::string& png) {
+  World world(settings);
+  const RoadMap& map = world.map();
+  std::vector<const LaneGeom*> lanes;
+  for (const LaneGeom& g : map.lanes)
+    if (g.kind == LaneKind::Driving && !g.internal && g.length > 10) lanes.push_back(&g);
+  if (lanes.empty()) throw SimError(world.network_path() + ": no driving lane to preview");
+  const int tiles = std::min<int>(6, static_cast<int>(lanes.size()));
+  const int cols = std::min(3, tiles), rows = (tiles + cols - 1) / cols;
+  const BevConfig& bc = world.renderer().config();
+  const int C = kBevChannelCount, H = bc.height, W = bc.width;
+  std::vector<uint8_t> frame(world.renderer().frame_bytes());
+  std::vector<uint8_t> grid(static_cast<size_t>(C) * rows * H * cols * W, 0);
+  for (int t = 0; t < tiles; ++t) {
+    const LaneGeom& g = *lanes[static_cast<size_t>(t) * lanes.size() / tiles];
+    // Midpoint of the lane's middle segment, heading along it.
+    size_t i = g.shape.size() / 2;
+    Vec2 a = g.shape[i - 1], b = g.shape[i];
+    BevScene scene;
+    scene.ego = {(a + b) * 0.5, std::atan2(b.y - a.y, b.x - a.x)};
+    world.renderer().render(scene, frame.data());
+    int r0 = (t / cols) * H, c0 = (t % cols) * W;
+    for (int c = 0; c < C; ++c)
+      for (int y = 0; y < H; ++y)
+        std::memcpy(&grid[(static_cast<size_t>(c) * rows * H + r0 + y) * cols * W + c0],
+                    &frame[(static_cast<size_t>(c) * H + y) * W], W);
+  }
+  write_bev_png(png, grid.data(), C, rows * H, cols * W);
+  std::printf("preview of %d places -> %s\n", tiles, png.c_str());
+}
+
+}  // namespace
+
+void add_town(CLI::App& app) {
+  auto names = std::make_shared<std::vector<std::string>>();
+  auto net = std::make_shared<std::string>();
+  auto preview = std::make_shared<std::string>();
+  auto config = std::make_shared<std::string>();
+  auto list = std::make_shared<bool>(false);
+  CLI::App* sub = app.add_subcommand(
+      "town", "generate the built-in towns (cached), or check a user network and preview it");
+  sub->add_option("names", *names, "towns to generate (default: all)");
+  sub->add_option("--net", *net, "a SUMO .net.xml to load instead of a built-in town");
+  sub->add_option("--preview", *preview, "write a PNG of the BEV at a few places of the network");
+  sub->add_option("--config,-c", *config, "TOML config for the BEV settings");
+  sub->add_flag("--list", *list, "list the built-in towns");
+  sub->callback([=] {
+    if (*list) {
+      for (const auto& n : town_names())
+        std::printf("%-8s %s\n", n.c_str(), town_spec(n).description.c_str());
+      return;
+    }
+    Settings s = settings_from(*config);
+    std::vector<std::string> targets = *names;
+    if (!net->empty()) {
+      if (!targets.empty()) throw ConfigError("town: give either town names or --net, not both");
+      targets = {*net};
+    } else if (targets.empty()) {
+      targets = town_names();
+    }
+    for (const auto& t : targets) {
+      std::string path = resolve_network(t);
+      std::printf("%-8s %s\n", network_label(t).c_str(), path.c_str());
+    }
+    if (!preview->empty()) {
+      if (targets.size() != 1)
+        throw ConfigError("town --preview needs exactly one town name or --net FILE");
+      s.world.town = targets.front();
+      write_preview(s, *preview);
+    }
+  });
+}
+
+}  // namespace cd::cli

@@ -1,0 +1,13 @@
+#pragma once
+#include <string>
+
+#include "app/settings.hpp"
+
+namespace cd::cli {
+
+// The settings of a config file, or the built-in defaults (= configs/quickstart.toml).
+inline Settings settings_from(const std::string& config_path) {
+  return config_path.empty() ? Settings{} : load_settings(config_path);
+}
+
+}  // namespace cd::cli

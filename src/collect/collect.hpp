@@ -1,0 +1,31 @@
+#pragma once
+// Expert data collection: episodes in parallel worker processes (libsumo runs one simulation
+// per process), one HDF5 file each, resumable.
+#include <string>
+#include <vector>
+
+#include "app/settings.hpp"
+#include "collect/expert_episode.hpp"
+
+namespace cd {
+
+struct CollectOptions {
+  std::string png_dir;  // non-empty: also write every frame as PNG, one folder per episode
+  bool quiet = false;   // no progress output
+};
+
+struct CollectReport {
+  std::vector<EpisodeSummary> episodes;  // all episodes in the folder, by index
+  int recorded_now = 0;                  // episodes this run recorded (the rest were kept)
+  double seconds = 0;
+  long frames = 0;
+};
+
+// File name of episode `index` inside the output folder.
+std::string episode_file_name(int index);
+
+// Records settings.collect.episodes episodes into settings.collect.out. Episodes whose file
+// is already complete are kept and skipped. Throws Error when a worker fails twice.
+CollectReport collect(const Settings& settings, const CollectOptions& options = {});
+
+}  // namespace cd

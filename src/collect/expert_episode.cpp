@@ -1,0 +1,152 @@
+#include "collect/expert_episode.hpp"
+
+#include <cstdio>
+#include <filesystem>
+
+#include "core/rng.hpp"
+#include "world/town.hpp"
+
+namespace cd {
+
+namespace {
+
+constexpr double kAbsentDistance = 100.0;  // m recorded when there is no leader, light, ...
+
+// Appends the ground-truth causes of the current state, one value per series.
+void record_causes(const GroundTruth& gt, EpisodeData& d) {
+  auto put = [&](const char* name, double v) { d.causes[name].push_back(static_cast<float>(v)); };
+  put("lead_present", gt.lead_present);
+  put("lead_distance", gt.lead_present ? gt.lead_distance : kAbsentDistance);
+  put("lead_speed", gt.lead_present ? gt.lead_speed : 0.0);
+  put("tl_state", gt.tl_state);
+  put("tl_distance", gt.tl_state != kTlNone ? gt.tl_distance : kAbsentDistance);
+  put("ped_on_path", gt.ped_on_path);
+  put("ped_distance", gt.ped_on_path ? gt.ped_distance : kAbsentDistance);
+  put("must_yield", gt.must_yield);
+  put("junction_distance", gt.junction_distance);
+  put("path_free", gt.path_free);
+}
+
+}  // namespace
+
+const std::vector<std::string>& cause_names() {
+  static const std::vector<std::string> names = {
+      "junction_distance", "lead_distance", "lead_present", "lead_speed", "must_yield",
+      "path_free",         "ped_distance",  "ped_on_path",  "tl_distance", "tl_state"};
+  return names;
+}
+
+uint64_t episode_seed(uint64_t run_seed, int index) {
+  return derive_seed(run_seed, static_cast<uint64_t>(index));
+}
+
+ExpertRecorder::ExpertRecorder(World& world, const Settings& settings)
+    : world_(world), settings_(settings), expert_(settings.expert) {}
+
+void ExpertRecorder::begin(EpisodeData& d) const {
+  const BevRenderer& bev = world_.renderer();
+  d = EpisodeData{};
+  d.channels = kBevChannelCount;
+  d.height = bev.config().height;
+  d.width = bev.config().width;
+  d.action_dim = 2;
+}
+
+Control ExpertRecorder::record_step(EpisodeData& d) const {
+  size_t at = d.bev.size();
+  d.bev.resize(at + d.frame_bytes());
+  world_.render(d.bev.data() + at);
+  const EgoState& ego = world_.ego();
+  d.speed.push_back(static_cast<float>(ego.speed));
+  d.command.push_back(world_.command());
+  d.pose.insert(d.pose.end(), {static_cast<float>(ego.pose.pos.x),
+                               static_cast<float>(ego.pose.pos.y),
+                               static_cast<float>(ego.pose.heading)});
+  record_causes(world_.truth(), d);
+  Control label = expert_.act(world_);
+  d.action.insert(d.action.end(),
+                  {static_cast<float>(label.throttle), static_cast<float>(label.brake)});
+  return label;
+}
+
+EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, EpisodeMeta& meta,
+                                   const std::string& png_dir) {
+  const CollectSettings& cs = settings_.collect;
+  Task task = world_.sample_task(derive_seed(seed, 0), cs.min_route_m, cs.max_route_m);
+  if (cs.max_episode_s > 0) task.timeout_s = std::min(task.timeout_s, cs.max_episode_s);
+  world_.reset(task);
+
+  begin(d);
+  const BevRenderer& bev = world_.renderer();
+  const long expected = static_cast<long>(task.timeout_s / settings_.world.dt) + 1;
+  d.bev.reserve(bev.frame_bytes() * static_cast<size_t>(expected));
+
+  const NoiseSettings& ns = cs.noise;
+  Rng noise_rng(derive_seed(seed, 2));
+  double noise_left = 0;
+  Control noise_control;
+  if (!png_dir.empty()) std::filesystem::create_directories(png_dir);
+
+  StepResult r;
+  while (r.outcome == Outcome::Running) {
+    Control label = record_step(d);
+    if (!png_dir.empty()) {
+      char name[64];
+      std::snprintf(name, sizeof name, "/frame_%05zu.png", d.speed.size() - 1);
+      write_bev_png(png_dir + name, d.bev.data() + (d.frames() - 1) * d.frame_bytes(),
+                    d.channels, d.height, d.width);
+    }
+
+    Control executed = label;
+    if (ns.enabled) {
+      if (noise_left <= 0 && noise_rng.uniform() < ns.rate_per_s * settings_.world.dt) {
+        noise_left = noise_rng.uniform(ns.min_s, ns.max_s);
+        bool brake = noise_rng.uniform() < 0.5;
+        double level = noise_rng.uniform(0.3, 1.0);
+        noise_control = brake ? Control{0.0, level} : Control{level, 0.0};
+      }
+      if (noise_left > 0) {
+        executed = noise_control;
+        noise_left -= settings_.world.dt;
+      }
+    }
+    r = world_.step(executed);
+  }
+
+  meta = EpisodeMeta{};
+  meta.town = network_label(settings_.world.town);
+  meta.suite = "collect-" + settings_.world.traffic;
+  meta.seed = seed;
+  meta.dt = settings_.world.dt;
+  meta.metres_per_pixel = bev.config().metres_per_pixel;
+  for (const auto& n : bev_channel_names()) meta.channels.push_back(n);
+  meta.action_names = {"throttle", "brake"};
+  meta.outcome = outcome_name(r.outcome);
+  std::string route;
+  for (const auto& e : task.route) route += (route.empty() ? "" : " ") + e;
+  char buf[64];
+  meta.extra["route"] = route;
+  meta.extra["traffic"] = settings_.world.traffic;
+  std::snprintf(buf, sizeof buf, "%.3f", task.route_length);
+  meta.extra["route_length_m"] = buf;
+  std::snprintf(buf, sizeof buf, "%.3f", world_.counters().distance);
+  meta.extra["distance_m"] = buf;
+  meta.extra["episode_index"] = std::to_string(index);
+  meta.extra["red_light_violations"] = std::to_string(world_.counters().red_light_violations);
+  if (!r.collided_with.empty()) meta.extra["collided_with"] = r.collided_with;
+  meta.extra["noise"] = ns.enabled ? "on" : "off";
+  meta.extra["command_codes"] = "0 follow, 1 left, 2 right, 3 straight";
+  meta.extra["tl_state_codes"] = "0 none, 1 red, 2 yellow, 3 green, 4 green-yield";
+
+  EpisodeSummary s;
+  s.index = index;
+  s.outcome = meta.outcome;
+  s.frames = static_cast<long>(d.frames());
+  s.route_length = task.route_length;
+  s.distance = world_.counters().distance;
+  s.red_light_violations = world_.counters().red_light_violations;
+  s.collided_with = r.collided_with;
+  return s;
+}
+
+}  // namespace cd

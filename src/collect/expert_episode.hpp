@@ -1,0 +1,51 @@
+#pragma once
+// Drives one episode with the expert and records it (SPEC section 2): the frame before each
+// action, the expert's action as the label, the ground-truth causes. With noise injection
+// the executed action is replaced for short windows while the label stays the expert's.
+#include <cstdint>
+#include <string>
+
+#include "data/episode.hpp"
+#include "expert/autopilot.hpp"
+#include "world/world.hpp"
+
+namespace cd {
+
+struct EpisodeSummary {
+  int index = 0;
+  std::string outcome;
+  long frames = 0;
+  double route_length = 0;
+  double distance = 0;
+  int red_light_violations = 0;
+  std::string collided_with;
+};
+
+// Names of the recorded causes/ series, in file order.
+const std::vector<std::string>& cause_names();
+
+class ExpertRecorder {
+ public:
+  ExpertRecorder(World& world, const Settings& settings);
+
+  // Samples the task of `episode_seed`, runs it to the end and fills data and meta.
+  // With png_dir non-empty, also writes every frame there as PNG.
+  EpisodeSummary run(int index, uint64_t episode_seed, EpisodeData& data, EpisodeMeta& meta,
+                     const std::string& png_dir = "");
+
+  // The two halves of one recorded step, for loops that drive the world themselves (the
+  // throughput benchmark): empty `data` shaped for this world's frames, then append the
+  // current frame, measurements, causes and the expert's label, and return that label.
+  void begin(EpisodeData& data) const;
+  Control record_step(EpisodeData& data) const;
+
+ private:
+  World& world_;
+  Settings settings_;
+  Autopilot expert_;
+};
+
+// The seed of episode `index` of a collection run.
+uint64_t episode_seed(uint64_t run_seed, int index);
+
+}  // namespace cd

@@ -1,0 +1,46 @@
+#include "core/atomic_file.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+
+#include "core/error.hpp"
+
+namespace cd {
+
+std::string temp_path_for(const std::string& final_path) {
+  // The pid keeps concurrent writers (worker processes) apart; ".tmp" marks it as unfinished.
+  return final_path + "." + std::to_string(::getpid()) + ".tmp";
+}
+
+void commit_temp_file(const std::string& tmp, const std::string& final_path) {
+  int fd = ::open(tmp.c_str(), O_RDONLY);
+  if (fd < 0) throw IoError("cannot open " + tmp + ": " + std::strerror(errno));
+  ::fsync(fd);
+  ::close(fd);
+  if (std::rename(tmp.c_str(), final_path.c_str()) != 0) {
+    std::string why = std::strerror(errno);
+    std::remove(tmp.c_str());
+    throw IoError("cannot rename " + tmp + " to " + final_path + ": " + why);
+  }
+}
+
+void write_file_atomic(const std::string& path, const std::string& content) {
+  std::filesystem::path p(path);
+  if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path());
+  std::string tmp = temp_path_for(path);
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw IoError("cannot write " + tmp);
+    out.write(content.data(), static_cast<std::streamsize>(content.size()));
+    if (!out) throw IoError("write failed for " + tmp);
+  }
+  commit_temp_file(tmp, path);
+}
+
+}  // namespace cd

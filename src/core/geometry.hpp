@@ -1,0 +1,45 @@
+#pragma once
+// Planar geometry in SUMO's network frame (metres, x east, y north).
+#include <cmath>
+#include <vector>
+
+namespace cd {
+
+struct Vec2 {
+  double x = 0, y = 0;
+  Vec2 operator+(Vec2 o) const { return {x + o.x, y + o.y}; }
+  Vec2 operator-(Vec2 o) const { return {x - o.x, y - o.y}; }
+  Vec2 operator*(double s) const { return {x * s, y * s}; }
+  double dot(Vec2 o) const { return x * o.x + y * o.y; }
+  double cross(Vec2 o) const { return x * o.y - y * o.x; }
+  double norm() const { return std::hypot(x, y); }
+};
+
+// Heading in radians, mathematical convention: 0 = east (+x), counter-clockwise positive.
+struct Pose2 {
+  Vec2 pos;
+  double heading = 0;
+};
+
+// SUMO reports compass degrees (0 = north, clockwise); convert to our heading.
+inline double heading_from_sumo_angle(double deg) {
+  return (90.0 - deg) * M_PI / 180.0;
+}
+
+// An oriented rectangle: centre, heading of its length axis, full length and width.
+struct Box {
+  Vec2 center;
+  double heading = 0;
+  double length = 0;
+  double width = 0;
+};
+
+using Polyline = std::vector<Vec2>;
+
+inline double polyline_length(const Polyline& p) {
+  double s = 0;
+  for (size_t i = 1; i < p.size(); ++i) s += (p[i] - p[i - 1]).norm();
+  return s;
+}
+
+}  // namespace cd

@@ -1,0 +1,45 @@
+#pragma once
+// Seeded randomness with results fixed by this code alone (std:: distributions differ between
+// library versions, which would break "same seed, same bytes").
+#include <cstdint>
+
+namespace cd {
+
+inline uint64_t splitmix64(uint64_t x) {
+  x += 0x9e3779b97f4a7c15ull;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+  return x ^ (x >> 31);
+}
+
+// A seed for sub-stream `index` of `seed` (episode i of a run, worker k, ...).
+inline uint64_t derive_seed(uint64_t seed, uint64_t index) {
+  return splitmix64(splitmix64(seed) ^ (index * 0xd1b54a32d192ed03ull));
+}
+
+// xoshiro256** seeded through splitmix64.
+class Rng {
+ public:
+  explicit Rng(uint64_t seed) {
+    for (auto& s : s_) s = seed = splitmix64(seed);
+  }
+  uint64_t next() {
+    uint64_t r = rotl(s_[1] * 5, 7) * 9, t = s_[1] << 17;
+    s_[2] ^= s_[0];
+    s_[3] ^= s_[1];
+    s_[1] ^= s_[2];
+    s_[0] ^= s_[3];
+    s_[2] ^= t;
+    s_[3] = rotl(s_[3], 45);
+    return r;
+  }
+  double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }  // [0,1)
+  double uniform(double lo, double hi) { return lo + (hi - lo) * uniform(); }
+  uint64_t below(uint64_t n) { return n ? next() % n : 0; }  // bias negligible for small n
+
+ private:
+  static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
+  uint64_t s_[4];
+};
+
+}  // namespace cd

@@ -1,0 +1,41 @@
+#pragma once
+// One recorded episode in memory: the contract of SPEC section 2, independent of HDF5.
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace cd {
+
+inline constexpr int kEpisodeFormatVersion = 1;
+
+struct EpisodeMeta {
+  int format_version = kEpisodeFormatVersion;
+  std::string town;
+  std::string suite;
+  uint64_t seed = 0;
+  double dt = 0.1;
+  std::vector<std::string> channels;  // BEV channel names, in order
+  double metres_per_pixel = 0.5;
+  std::vector<std::string> action_names;  // e.g. {"throttle", "brake"}
+  std::string outcome;                    // success | collision | timeout | ...
+  // Further string attributes (route, traffic level, noise settings ...), written as-is.
+  std::map<std::string, std::string> extra;
+};
+
+struct EpisodeData {
+  int channels = 0, height = 0, width = 0;  // BEV frame shape C x H x W
+  int action_dim = 0;
+  std::vector<uint8_t> bev;      // T*C*H*W, row-major
+  std::vector<float> speed;      // T, m/s
+  std::vector<float> action;     // T*action_dim, the expert's action (the label)
+  std::vector<int32_t> command;  // T
+  std::vector<float> pose;       // T*3: x, y (m, network frame), heading (rad, 0 = east, CCW)
+  // Ground-truth causes, each a series of length T (group "causes/" in the file).
+  std::map<std::string, std::vector<float>> causes;
+
+  size_t frames() const { return speed.size(); }
+  size_t frame_bytes() const { return static_cast<size_t>(channels) * height * width; }
+};
+
+}  // namespace cd

@@ -1,0 +1,26 @@
+#pragma once
+// HDF5 episode files (SPEC section 2), readable by h5py.
+//
+// Layout: datasets bev (uint8, T x C x H x W, chunked per frame, deflate), speed (float32, T),
+// action (float32, T x A), command (int32, T), pose (float32, T x 3), group causes/ with one
+// float32 dataset of length T per ground-truth variable. File attributes: format_version,
+// town, suite, seed, dt, channels (array of strings), metres_per_pixel, action_names, outcome,
+// frames, plus every entry of EpisodeMeta::extra as a string attribute.
+// Files are byte-identical for identical input: no timestamps are stored.
+#include <string>
+
+#include "data/episode.hpp"
+
+namespace cd {
+
+// Writes atomically: a temporary file in the same folder, fsync, rename. Throws IoError.
+void write_episode(const std::string& path, const EpisodeMeta& meta, const EpisodeData& data);
+
+// Reads and validates (shapes, equal first dimensions, format version). Throws DataError on
+// a malformed file and IoError on a missing one.
+EpisodeData read_episode(const std::string& path, EpisodeMeta* meta = nullptr);
+
+// Reads only the attributes: cheap, used to check that a file is complete when resuming.
+EpisodeMeta read_episode_meta(const std::string& path);
+
+}  // namespace cd

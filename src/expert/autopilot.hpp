@@ -1,0 +1,24 @@
+#pragma once
+// The expert: a rule-based autopilot with privileged state. It can be asked for its action at
+// any state of the ego (DAgger relabelling, noise injection): it reads only the World's
+// current ground truth, never its own history.
+#include "world/world.hpp"
+
+namespace cd {
+
+class Autopilot {
+ public:
+  explicit Autopilot(const ExpertSettings& s) : s_(s) {}
+
+  // The speed the expert wants now: the tightest of cruise, turn, leader, light, yield and
+  // pedestrian limits, each a braking profile that stops at the right place.
+  double target_speed(const World& w) const;
+
+  // Throttle and brake that track the target speed under the ego's vehicle model.
+  Control act(const World& w) const;
+
+ private:
+  ExpertSettings s_;
+};
+
+}  // namespace cd

@@ -1,0 +1,756 @@
+#include "world/world.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <regex>
+#include <set>
+
+#include <libsumo/libsumo.h>
+
+#include "core/error.hpp"
+#include "core/rng.hpp"
+#include "world/collision.hpp"
+#include "world/sumo_errors.hpp"
+#include "world/town.hpp"
+
+namespace cd {
+
+namespace {
+
+const std::string kEgo = "ego";
+const std::string kEgoType = "cd_ego";
+const std::string kEgoRoute = "cd_ego_route";
+constexpr double kPedSize = 0.5;        // m, pedestrians are drawn and checked as squares
+constexpr double kPathHorizon = 80.0;   // m of route ahead that the checks look at
+constexpr double kTopUpPeriod = 1.0;    // s between background refills
+bool g_world_alive = false;             // libsumo holds one simulation per process
+
+bool contains(const std::vector<std::string>& v, const std::string& s) {
+  return std::find(v.begin(), v.end(), s) != v.end();
+}
+
+bool is_upper(char c) { return c >= 'A' && c <= 'Z'; }
+
+int tl_code(char state) {
+  switch (state) {
+    case 'r': case 'R': case 'u': case 's': return kTlRed;
+    case 'y': case 'Y': return kTlYellow;
+    case 'G': return kTlGreen;
+    case 'g': return kTlGreenYield;
+    default: return kTlNone;
+  }
+}
+
+int command_of(char direction) {
+  switch (direction) {
+    case 'l': case 'L': case 't': return kLeft;
+    case 'r': case 'R': return kRight;
+    case 's': return kStraight;
+    default: return kFollow;
+  }
+}
+
+Vec2 to_vec(const libsumo::TraCIPosition& p) { return {p.x, p.y}; }
+
+// The point `pos` metres along a lane's centre line.
+Vec2 point_at(const LaneGeom& lane, double pos) {
+  const Polyline& s = lane.shape;
+  for (size_t i = 1; i < s.size(); ++i) {
+    double len = (s[i] - s[i - 1]).norm();
+    if (pos <= len || i + 1 == s.size())
+      return s[i - 1] + (s[i] - s[i - 1]) * (len > 1e-9 ? std::min(pos, len) / len : 0.0);
+    pos -= len;
+  }
+  return s.front();
+}
+
+}  // namespace
+
+const char* outcome_name(Outcome o) {
+  switch (o) {
+    case Outcome::Running: return "running";
+    case Outcome::Success: return "success";
+    case Outcome::Collision: return "collision";
+    case Outcome::Timeout: return "timeout";
+  }
+  return "?";
+}
+
+World::World(const Settings& settings) : settings_(settings), ego_model_(settings.ego) {
+  if (g_world_alive)
+    throw SimError("only one World per process: libsumo runs a single simulation");
+  net_path_ = resolve_network(settings_.world.town);
+  std::vector<std::string> args = sumo_args(0);
+  with_sumo_errors("cannot load network " + net_path_,
+                   [&] { libsumo::Simulation::start(args); });
+  g_world_alive = true;
+  try {
+    build_map();
+    renderer_ = std::make_unique<BevRenderer>(map_, settings_.bev);
+  } catch (...) {
+    libsumo::Simulation::close();
+    g_world_alive = false;
+    throw;
+  }
+}
+
+World::~World() {
+  try {
+    libsumo::Simulation::close();
+  } catch (...) {
+  }
+  g_world_alive = false;
+}
+
+std::vector<std::string> World::sumo_args(uint64_t seed) const {
+  char step[32];
+  std::snprintf(step, sizeof step, "%.6g", settings_.world.dt);
+  return {"sumo",
+          "--net-file", net_path_,
+          "--step-length", step,
+          "--seed", std::to_string(seed % 2147483647ull),
+          "--no-step-log", "true",
+          "--no-warnings", "true",
+          "--duration-log.disable", "true",
+          "--collision.action", "warn",
+          "--collision.mingap-factor", "0",
+          "--collision.check-junctions", "true",
+          "--ignore-route-errors", "true",
+          "--time-to-teleport", "120",
+          "--pedestrian.model", "striping"};
+}
+
+void World::build_map() {
+  static const std::regex crossing_re(".*_c[0-9]+$"), walking_re(".*_w[0-9]+$");
+  std::unordered_map<std::string, std::vector<int>> driving_by_edge;
+  std::set<std::string> car_edges, ped_edges;
+  for (const std::string& id : libsumo::Lane::getIDList()) {
+    LaneGeom g;
+    g.id = id;
+    g.edge = libsumo::Lane::getEdgeID(id);
+    g.internal = !id.empty() && id[0] == ':';
+    g.width = libsumo::Lane::getWidth(id);
+    g.length = libsumo::Lane::getLength(id);
+    for (const auto& p : libsumo::Lane::getShape(id).value) g.shape.push_back({p.x, p.y});
+    auto us = id.rfind('_');
+    g.index = us == std::string::npos ? 0 : std::atoi(id.c_str() + us + 1);
+    auto allowed = libsumo::Lane::getAllowed(id);
+    auto disallowed = libsumo::Lane::getDisallowed(id);
+    bool cars = allowed.empty() ? !contains(disallowed, "passenger") : contains(allowed, "passenger");
+    bool peds = allowed.empty() ? !contains(disallowed, "pedestrian") : contains(allowed, "pedestrian");
+    if (cars) {
+      g.kind = LaneKind::Driving;
+      if (!g.internal) {
+        car_edges.insert(g.edge);
+        lane_km_ += g.length / 1000.0;
+      }
+    } else if (peds) {
+      if (std::regex_match(g.edge, crossing_re) && g.internal) g.kind = LaneKind::Crossing;
+      else if (std::regex_match(g.edge, walking_re) && g.internal) g.kind = LaneKind::WalkingArea;
+      else g.kind = LaneKind::Sidewalk;
+      if (!g.internal) {
+        ped_edges.insert(g.edge);
+        sidewalk_length_[g.edge] = g.length;
+      }
+    } else {
+      continue;  // rail, bike-only and similar lanes are not part of this world
+    }
+    if (g.shape.size() < 2) continue;
+    map_.add(std::move(g));
+    const LaneGeom& added = map_.lanes.back();
+    if (added.kind == LaneKind::Driving && !added.internal)
+      driving_by_edge[added.edge].push_back(static_cast<int>(map_.lanes.size() - 1));
+  }
+  for (auto& [edge, idx] : driving_by_edge) {
+    // The rightmost car lane stands for the edge (insertion positions, lengths).
+    int best = idx.front();
+    for (int i : idx)
+      if (map_.lanes[i].index < map_.lanes[best].index) best = i;
+    edge_lane_[edge] = &map_.lanes[best];
+  }
+  if (car_edges.empty()) throw SimError(net_path_ + ": the network has no lane for cars");
+  for (auto& [edge, idx] : driving_by_edge) {
+    for (int i : idx) {
+      LaneGeom& g = map_.lanes[i];
+      for (int j : idx) {
+        if (map_.lanes[j].index == g.index + 1) g.has_left_neighbour = true;
+        if (map_.lanes[j].index == g.index - 1) g.has_right_neighbour = true;
+      }
+    }
+  }
+  for (const LaneGeom& g : map_.lanes) {
+    if (g.kind != LaneKind::Driving) continue;
+    std::vector<Link>& out = links_[g.id];
+    for (const auto& c : libsumo::Lane::getLinks(g.id)) {
+      if (!map_.find(c.approachedLane)) continue;
+      Link l{c.approachedLane, c.approachedInternal, c.direction.empty() ? 's' : c.direction[0]};
+      out.push_back(l);
+      if (!g.internal && !c.approachedInternal.empty()) {
+        approach_of_via_[c.approachedInternal] = g.id;
+        foes_[c.approachedInternal] = libsumo::Lane::getInternalFoes(c.approachedInternal);
+      }
+    }
+  }
+  car_edges_.assign(car_edges.begin(), car_edges.end());
+  ped_edges_.assign(ped_edges.begin(), ped_edges.end());
+}
+
+Task World::sample_task(uint64_t seed, double min_len, double max_len) {
+  Rng rng(seed);
+  Task best;
+  double best_miss = 1e300;
+  for (int attempt = 0; attempt < 400; ++attempt) {
+    const std::string& from = car_edges_[rng.below(car_edges_.size())];
+    const std::string& to = car_edges_[rng.below(car_edges_.size())];
+    if (from == to) continue;
+    libsumo::TraCIStage r = libsumo::Simulation::findRoute(from, to);
+    if (r.edges.size() < 2) continue;
+    double from_len = edge_lane_.at(from)->length, to_len = edge_lane_.at(to)->length;
+    Task t;
+    t.route = r.edges;
+    t.start_pos = std::min(from_len * 0.3, std::max(0.0, from_len - 10.0));
+    t.goal_pos = std::max(1.0, to_len * 0.5);
+    // findRoute covers whole edges; the task starts and ends inside them.
+    t.route_length = r.length - t.start_pos - (to_len - t.goal_pos);
+    t.traffic_seed = rng.next() >> 1;
+    double miss = t.route_length < min_len ? min_len - t.route_length
+                  : t.route_length > max_len ? t.route_length - max_len : 0.0;
+    if (miss < best_miss) {
+      best = t;
+      best_miss = miss;
+    }
+    if (miss == 0) break;
+  }
+  if (best.route.empty()) throw SimError(net_path_ + ": no route found between car edges");
+  best.timeout_s = best.route_length / (5.0 / 3.6) + 20.0;
+  return best;
+}
+
+void World::reset(const Task& task) {
+  if (task.route.empty()) throw SimError("task has an empty route");
+  task_ = task;
+  if (task_.timeout_s <= 0) task_.timeout_s = task_.route_length / (5.0 / 3.6) + 20.0;
+  std::vector<std::string> args = sumo_args(task.traffic_seed);
+  args.erase(args.begin());  // load() takes the options without the program name
+  with_sumo_errors("cannot reload " + net_path_, [&] { libsumo::Simulation::load(args); });
+  traffic_rng_ = std::make_unique<Rng>(derive_seed(task.traffic_seed, 1));
+  next_actor_id_ = 0;
+  scripted_ = 0;
+  type_size_.clear();
+  counters_ = {};
+  outcome_ = Outcome::Running;
+  prev_link_state_ = 0;
+  prev_link_distance_ = 1e9;
+  ego_present_ = false;
+  ego_ = {};
+
+  sumo_call("cannot start traffic", [&] {
+    libsumo::VehicleType::copy("DEFAULT_VEHTYPE", kEgoType);
+    libsumo::VehicleType::setLength(kEgoType, settings_.ego.length);
+    libsumo::VehicleType::setWidth(kEgoType, settings_.ego.width);
+    libsumo::VehicleType::setMaxSpeed(kEgoType, settings_.ego.max_speed);
+    libsumo::VehicleType::setAccel(kEgoType, settings_.ego.max_accel);
+    libsumo::VehicleType::setDecel(kEgoType, settings_.ego.max_decel);
+    libsumo::VehicleType::setEmergencyDecel(kEgoType, settings_.ego.max_decel);
+    libsumo::VehicleType::setImperfection(kEgoType, 0.0);
+    libsumo::VehicleType::setColor(kEgoType, libsumo::TraCIColor(255, 40, 40));
+    libsumo::Route::add(kEgoRoute, task.route);
+    spawn_background();
+  });
+  int warm_steps = static_cast<int>(std::lround(settings_.world.warmup_s / settings_.world.dt));
+  steps_since_load_ = 0;
+  sumo_call("simulation failed during warm-up", [&] {
+    for (int i = 0; i < warm_steps; ++i) advance();
+  });
+  insert_ego();
+  route_lanes_ = route_lane_sequence();
+  renderer_->set_route(route_lanes_);
+  refresh();
+  ego_.progress = 0;
+}
+
+bool World::add_background_car(const std::string& id) {
+  Rng& rng = *traffic_rng_;
+  const std::string& from = car_edges_[rng.below(car_edges_.size())];
+  const std::string& to = car_edges_[rng.below(car_edges_.size())];
+  if (from == to) return false;
+  libsumo::TraCIStage r = libsumo::Simulation::findRoute(from, to);
+  if (r.edges.size() < 2) return false;
+  const LaneGeom* lane = edge_lane_.at(from);
+  double pos = rng.uniform(0.0, std::max(0.0, lane->length - 6.0));
+  // Never materialise a car in sight of the ego.
+  if (ego_present_ && (point_at(*lane, pos) - ego_.pose.pos).norm() < settings_.world.view_radius)
+    return false;
+  libsumo::Route::add(id + "_r", r.edges);
+  char p[32];
+  std::snprintf(p, sizeof p, "%.2f", pos);
+  libsumo::Vehicle::add(id, id + "_r", "DEFAULT_VEHTYPE", "now", "best", p, "0");
+  return true;
+}
+
+void World::spawn_background() {
+  const TrafficDensity& d = traffic_density(settings_.world);
+  target_cars_ = static_cast<int>(std::lround(d.cars_per_km * lane_km_));
+  target_peds_ = ped_edges_.empty() ? 0 : static_cast<int>(std::lround(d.peds_per_km * lane_km_));
+  top_up_background();
+}
+
+void World::top_up_background() {
+  int cars = static_cast<int>(libsumo::Vehicle::getIDCount()) +
+             static_cast<int>(libsumo::Simulation::getPendingVehicles().size());
+  if (ego_present_) --cars;
+  for (int tries = 0; cars < target_cars_ && tries < 4 * target_cars_; ++tries) {
+    if (add_background_car("bg" + std::to_string(next_actor_id_++))) ++cars;
+  }
+  int peds = libsumo::Person::getIDCount();
+  Rng& rng = *traffic_rng_;
+  for (int tries = 0; peds < target_peds_ && tries < 4 * target_peds_; ++tries) {
+    const std::string& from = ped_edges_[rng.below(ped_edges_.size())];
+    const std::string& to = ped_edges_[rng.below(ped_edges_.size())];
+    if (from == to) continue;
+    auto stages = libsumo::Simulation::findIntermodalRoute(from, to, "");
+    if (stages.empty() || stages.front().edges.empty()) continue;
+    std::string id = "ped" + std::to_string(next_actor_id_++);
+    libsumo::Person::add(id, from, rng.uniform(0.0, sidewalk_length_.at(from)),
+                         libsumo::DEPARTFLAG_NOW);
+    for (const auto& st : stages) libsumo::Person::appendStage(id, st);
+    ++peds;
+  }
+}
+
+void World::insert_ego() {
+  const std::string& first = task_.route.front();
+  auto clear_start = [&] {
+    for (const std::string& v : libsumo::Edge::getLastStepVehicleIDs(first)) {
+      double p = libsumo::Vehicle::getLanePosition(v);
+      if (v != kEgo && p > task_.start_pos - 60 && p < task_.start_pos + 20)
+        libsumo::Vehicle::remove(v);
+    }
+  };
+  sumo_call("cannot insert the ego vehicle", [&] {
+    clear_start();
+    char p[32];
+    std::snprintf(p, sizeof p, "%.2f", task_.start_pos);
+    libsumo::Vehicle::add(kEgo, kEgoRoute, kEgoType, "now", "best", p, "0", "current", "max");
+    for (int i = 0; i < 50; ++i) {
+      advance();
+      if (contains(libsumo::Vehicle::getIDList(), kEgo)) {
+        libsumo::Vehicle::setSpeedMode(kEgo, 0);
+        libsumo::Vehicle::setLaneChangeMode(kEgo, 0);
+        libsumo::Vehicle::setSpeed(kEgo, 0);
+        ego_entry_time_ = libsumo::Simulation::getTime();
+        ego_present_ = true;
+        return;
+      }
+      clear_start();
+    }
+    throw SimError("the start position stayed blocked");
+  });
+}
+
+std::vector<std::string> World::route_lane_sequence() const {
+  std::vector<std::string> lanes;
+  std::string lane = libsumo::Vehicle::getLaneID(kEgo);
+  size_t k = 0;
+  while (!lane.empty() && lanes.size() < 10000) {
+    lanes.push_back(lane);
+    const LaneGeom* g = map_.find(lane);
+    if (!g) break;
+    auto it = links_.find(lane);
+    if (it == links_.end() || it->second.empty()) break;
+    std::string next;
+    if (g->internal) {
+      next = it->second.front().via_lane.empty() ? it->second.front().to_lane
+                                                  : it->second.front().via_lane;
+    } else {
+      while (k < task_.route.size() && task_.route[k] != g->edge) ++k;
+      if (k + 1 >= task_.route.size()) break;
+      for (const Link& l : it->second) {
+        const LaneGeom* to = map_.find(l.to_lane);
+        if (to && to->edge == task_.route[k + 1]) {
+          next = l.via_lane.empty() ? l.to_lane : l.via_lane;
+          break;
+        }
+      }
+    }
+    lane = next;
+  }
+  return lanes;
+}
+
+StepResult World::step(const Control& c) {
+  if (outcome_ != Outcome::Running) throw SimError("step() after the episode ended; call reset()");
+  double v0 = ego_.speed;
+  double v1 = ego_model_.next_speed(c, v0, settings_.world.dt);
+  bool present = true;
+  sumo_call("simulation step failed", [&] {
+    libsumo::Vehicle::setSpeed(kEgo, v1);
+    advance();
+    present = contains(libsumo::Vehicle::getIDList(), kEgo);
+  });
+  StepResult r;
+  sumo_call("reading the simulation failed", [&] { r = check_events(present); });
+  outcome_ = r.outcome;
+  return r;
+}
+
+void World::hand_ego_to_sumo() {
+  sumo_call("cannot hand the ego to SUMO", [] {
+    libsumo::Vehicle::setSpeedMode(kEgo, 31);
+    libsumo::Vehicle::setSpeed(kEgo, -1);
+  });
+}
+
+void World::step_bare() {
+  sumo_call("simulation step failed", [&] { advance(); });
+}
+
+void World::advance() {
+  libsumo::Simulation::step();
+  ++steps_since_load_;
+  int period = std::max(1, static_cast<int>(std::lround(kTopUpPeriod / settings_.world.dt)));
+  if (steps_since_load_ % period == 0) top_up_background();
+}
+
+StepResult World::check_events(bool present) {
+  StepResult r;
+  for (const auto& col : libsumo::Simulation::getCollisions()) {
+    if (col.collider == kEgo || col.victim == kEgo) {
+      r.outcome = Outcome::Collision;
+      r.collided_with = col.collider == kEgo ? col.victim : col.collider;
+      break;
+    }
+  }
+  if (!present) {
+    if (r.outcome != Outcome::Collision)
+      throw SimError("the ego vehicle left the simulation unexpectedly (teleported or removed)");
+    return r;
+  }
+  std::string prev_lane = ego_.lane;
+  double prev_progress = ego_.progress;
+  refresh();
+  counters_.distance += std::max(0.0, ego_.progress - prev_progress);
+
+  if (r.outcome != Outcome::Collision) {
+    Box ego_box{ego_.pose.pos, ego_.pose.heading, settings_.ego.length, settings_.ego.width};
+    for (const Actor& a : actors_) {
+      if (boxes_overlap(ego_box, a.box)) {
+        r.outcome = Outcome::Collision;
+        r.collided_with = a.id;
+        break;
+      }
+    }
+  }
+  bool now_internal = !ego_.lane.empty() && ego_.lane[0] == ':';
+  bool was_internal = !prev_lane.empty() && prev_lane[0] == ':';
+  if (now_internal && !was_internal && tl_code(prev_link_state_) == kTlRed &&
+      prev_link_distance_ < 10.0) {
+    r.ran_red_light = true;
+    ++counters_.red_light_violations;
+  }
+  if (r.outcome == Outcome::Running) {
+    const LaneGeom* g = map_.find(ego_.lane);
+    if (g && !g->internal && g->edge == task_.route.back() && ego_.lane_pos >= task_.goal_pos)
+      r.outcome = Outcome::Success;
+    else if (ego_.time >= task_.timeout_s)
+      r.outcome = Outcome::Timeout;
+  }
+  return r;
+}
+
+void World::refresh() {
+  const double t = libsumo::Simulation::getTime();
+  Vec2 front = to_vec(libsumo::Vehicle::getPosition(kEgo));
+  double angle = libsumo::Vehicle::getAngle(kEgo);
+  Box eb = box_from_front(front, angle, settings_.ego.length, settings_.ego.width);
+  double new_speed = libsumo::Vehicle::getSpeed(kEgo);
+  ego_.accel = (new_speed - ego_.speed) / settings_.world.dt;
+  ego_.speed = new_speed;
+  ego_.pose = {eb.center, eb.heading};
+  ego_.lane = libsumo::Vehicle::getLaneID(kEgo);
+  ego_.lane_pos = libsumo::Vehicle::getLanePosition(kEgo);
+  ego_.lane_speed_limit = libsumo::Lane::getMaxSpeed(ego_.lane);
+  ego_.progress = libsumo::Vehicle::getDistance(kEgo);
+  ego_.time = t - ego_entry_time_;
+
+  actors_.clear();
+  const double r2 = settings_.world.view_radius * settings_.world.view_radius;
+  for (const std::string& id : libsumo::Vehicle::getIDList()) {
+    if (id == kEgo) continue;
+    Vec2 p = to_vec(libsumo::Vehicle::getPosition(id));
+    Vec2 d = p - front;
+    if (d.dot(d) > r2) continue;
+    std::string type = libsumo::Vehicle::getTypeID(id);
+    auto it = type_size_.find(type);
+    if (it == type_size_.end())
+      it = type_size_.emplace(type, std::make_pair(libsumo::VehicleType::getLength(type),
+                                                   libsumo::VehicleType::getWidth(type))).first;
+    Actor a;
+    a.id = id;
+    a.box = box_from_front(p, libsumo::Vehicle::getAngle(id), it->second.first, it->second.second);
+    a.speed = libsumo::Vehicle::getSpeed(id);
+    actors_.push_back(std::move(a));
+  }
+  for (const std::string& id : libsumo::Person::getIDList()) {
+    Vec2 p = to_vec(libsumo::Person::getPosition(id));
+    Vec2 d = p - front;
+    if (d.dot(d) > r2) continue;
+    Actor a;
+    a.id = id;
+    a.pedestrian = true;
+    // A person's position is its front; its square is centred half a size behind.
+    a.box = box_from_front(p, libsumo::Person::getAngle(id), kPedSize, kPedSize);
+    a.speed = libsumo::Person::getSpeed(id);
+    actors_.push_back(std::move(a));
+  }
+  compute_path();
+  compute_truth();
+}
+
+void World::compute_path() {
+  path_.clear();
+  std::string lane = ego_.lane;
+  double from = ego_.lane_pos, s = 0;
+  size_t k = 0;
+  while (!lane.empty() && s < kPathHorizon) {
+    const LaneGeom* g = map_.find(lane);
+    if (!g) break;
+    path_.push_back({g, from, s});
+    if (!g->internal && g->edge == task_.route.back()) break;  // the goal lies on this lane
+    s += std::max(0.0, g->length - from);
+    from = 0;
+    auto it = links_.find(lane);
+    if (it == links_.end() || it->second.empty()) break;
+    std::string next;
+    if (g->internal) {
+      const Link& l = it->second.front();
+      next = l.via_lane.empty() ? l.to_lane : l.via_lane;
+    } else {
+      while (k < task_.route.size() && task_.route[k] != g->edge) ++k;
+      if (k + 1 >= task_.route.size()) break;
+      for (const Link& l : it->second) {
+        const LaneGeom* to = map_.find(l.to_lane);
+        if (to && to->edge == task_.route[k + 1]) {
+          next = l.via_lane.empty() ? l.to_lane : l.via_lane;
+          break;
+        }
+      }
+    }
+    lane = next;
+  }
+}
+
+bool World::on_path(Vec2 p, double half_width, double* s_out) const {
+  double best = 1e300;
+  for (const PathLane& pl : path_) {
+    const Polyline& shape = pl.lane->shape;
+    double arc = 0;
+    for (size_t i = 1; i < shape.size(); ++i) {
+      Vec2 a = shape[i - 1], d = shape[i] - a;
+      double len = d.norm();
+      if (len < 1e-9) continue;
+      Vec2 u = d * (1.0 / len);
+      double along = (p - a).dot(u);
+      double lat = std::abs((p - a).cross(u));
+      if (along >= -0.5 && along <= len + 0.5 && lat <= half_width) {
+        double lane_pos = arc + std::clamp(along, 0.0, len);
+        if (lane_pos >= pl.from_pos - 0.01) best = std::min(best, pl.s_begin + lane_pos - pl.from_pos);
+      }
+      arc += len;
+    }
+    if (best < 1e300) break;  // later lanes are farther along the path
+  }
+  if (best >= 1e300) return false;
+  *s_out = best;
+  return true;
+}
+
+void World::compute_truth() {
+  GroundTruth gt;
+  const ExpertSettings& xs = settings_.expert;
+  double half_lane = 1.6;
+  if (const LaneGeom* g = map_.find(ego_.lane)) half_lane = g->width / 2;
+
+  for (const Actor& a : actors_) {
+    auto corners = box_corners(a.box);
+    double s_min = 1e300;
+    double hw = a.pedestrian ? half_lane + xs.ped_margin : half_lane;
+    auto test = [&](Vec2 p) {
+      double s;
+      if (on_path(p, hw, &s)) s_min = std::min(s_min, s);
+    };
+    test(a.box.center);
+    if (a.pedestrian) {
+      Vec2 dir{std::cos(a.box.heading), std::sin(a.box.heading)};
+      test(a.box.center + dir * (a.speed * xs.ped_lookahead_s));
+    } else {
+      for (const Vec2& c : corners) test(c);
+    }
+    if (s_min >= 1e300) continue;
+    // Distance from the ego's front: a vehicle overlapping it laterally counts from 0.
+    if (a.pedestrian) {
+      if (!gt.ped_on_path || s_min < gt.ped_distance) {
+        gt.ped_on_path = true;
+        gt.ped_distance = s_min;
+      }
+    } else if (!gt.lead_present || s_min < gt.lead_distance) {
+      gt.lead_present = true;
+      gt.lead_distance = s_min;
+      double rel = a.box.heading - ego_.pose.heading;
+      gt.lead_speed = a.speed * std::cos(rel);
+    }
+  }
+
+  auto tls = libsumo::Vehicle::getNextTLS(kEgo);
+  if (!tls.empty() && tls.front().dist < kPathHorizon) {
+    gt.tl_state = tl_code(tls.front().state);
+    gt.tl_distance = tls.front().dist;
+    prev_link_state_ = tls.front().state;
+    prev_link_distance_ = tls.front().dist;
+  } else {
+    prev_link_state_ = 0;
+    prev_link_distance_ = 1e9;
+  }
+
+  // The next junction on the path: its via lane and the approach lane before it.
+  const PathLane* via = nullptr;
+  const PathLane* approach = nullptr;
+  for (size_t i = 0; i < path_.size(); ++i) {
+    if (path_[i].lane->internal) {
+      via = &path_[i];
+      approach = i > 0 ? &path_[i - 1] : nullptr;
+      break;
+    }
+  }
+  command_ = kFollow;
+  if (via) {
+    gt.junction_distance = via->s_begin;
+    char dir = 's';
+    char state = 'O';
+    std::string approach_id = approach ? approach->lane->id : "";
+    if (!approach) {
+      auto it = approach_of_via_.find(via->lane->id);
+      if (it != approach_of_via_.end()) approach_id = it->second;
+    }
+    if (!approach_id.empty()) {
+      for (const auto& c : libsumo::Lane::getLinks(approach_id)) {
+        if (c.approachedInternal == via->lane->id) {
+          dir = c.direction.empty() ? 's' : c.direction[0];
+          state = c.state.empty() ? 'O' : c.state[0];
+        }
+      }
+    }
+    if (gt.junction_distance <= settings_.world.command_horizon) command_ = command_of(dir);
+    // Inside the junction the ego is committed; before it, check who holds the junction.
+    if (approach && gt.junction_distance < kPathHorizon) {
+      bool minor = !is_upper(state) || state == 'O';
+      auto fit = foes_.find(via->lane->id);
+      if (fit != foes_.end()) {
+        for (const std::string& foe : fit->second) {
+          const LaneGeom* fg = map_.find(foe);
+          if (!fg) continue;
+          if (fg->kind == LaneKind::Crossing) {
+            if (!libsumo::Edge::getLastStepPersonIDs(fg->edge).empty()) gt.must_yield = true;
+            continue;
+          }
+          if (fg->kind != LaneKind::Driving) continue;
+          for (const std::string& v : libsumo::Lane::getLastStepVehicleIDs(foe)) {
+            // A car waiting inside the junction yields to a prioritised ego.
+            if (minor || libsumo::Vehicle::getSpeed(v) > 1.0) gt.must_yield = true;
+          }
+          if (!minor) continue;
+          auto ait = approach_of_via_.find(foe);
+          if (ait == approach_of_via_.end()) continue;
+          char foe_state = 'O';
+          for (const auto& c : libsumo::Lane::getLinks(ait->second))
+            if (c.approachedInternal == foe) foe_state = c.state.empty() ? 'O' : c.state[0];
+          if (!is_upper(foe_state) || foe_state == 'O') continue;
+          double len = libsumo::Lane::getLength(ait->second);
+          for (const std::string& v : libsumo::Lane::getLastStepVehicleIDs(ait->second)) {
+            double dist = len - libsumo::Vehicle::getLanePosition(v);
+            double sp = libsumo::Vehicle::getSpeed(v);
+            if (dist < 12.0 || dist / std::max(sp, 0.1) < xs.yield_time) gt.must_yield = true;
+          }
+        }
+      }
+    }
+  } else if (!ego_.lane.empty() && ego_.lane[0] == ':') {
+    gt.junction_distance = 0;
+  }
+  if (!path_.empty() && path_.front().lane->internal) {
+    // Inside a junction: the command is the turn being driven.
+    auto it = links_.find(approach_of_via_.count(ego_.lane) ? approach_of_via_.at(ego_.lane) : "");
+    if (it != links_.end())
+      for (const Link& l : it->second)
+        if (l.via_lane == ego_.lane) command_ = command_of(l.direction);
+  }
+
+  double v = ego_.speed;
+  gt.path_free_distance = v * v / (2 * xs.comfort_decel) + settings_.world.path_free_margin;
+  const double d = gt.path_free_distance;
+  gt.path_free = !(gt.lead_present && gt.lead_distance < d) &&
+                 !((gt.tl_state == kTlRed || gt.tl_state == kTlYellow) && gt.tl_distance < d) &&
+                 !(gt.ped_on_path && gt.ped_distance < d) &&
+                 !(gt.must_yield && via && gt.junction_distance < d);
+  truth_ = gt;
+}
+
+BevScene World::scene() const {
+  BevScene sc;
+  sc.ego = ego_.pose;
+  for (const Actor& a : actors_) (a.pedestrian ? sc.pedestrians : sc.vehicles).push_back(a.box);
+  if (truth_.tl_state != kTlNone) {
+    // The stop line lies tl_distance ahead along the path, across the lane.
+    double s = truth_.tl_distance;
+    for (const PathLane& pl : path_) {
+      double end = pl.s_begin + pl.lane->length - pl.from_pos;
+      if (s > end + 1e-6) continue;
+      const Polyline& shape = pl.lane->shape;
+      double target = pl.from_pos + (s - pl.s_begin), arc = 0;
+      for (size_t i = 1; i < shape.size(); ++i) {
+        Vec2 dv = shape[i] - shape[i - 1];
+        double len = dv.norm();
+        if (len < 1e-9) continue;
+        if (arc + len >= target - 1e-6 || i + 1 == shape.size()) {
+          Vec2 u = dv * (1.0 / len);
+          Vec2 p = shape[i - 1] + u * std::clamp(target - arc, 0.0, len);
+          Vec2 n{-u.y, u.x};
+          double hw = pl.lane->width / 2;
+          BevChannel ch = truth_.tl_state == kTlGreen        ? kBevLightGreen
+                          : truth_.tl_state == kTlGreenYield ? kBevLightYield
+                                                             : kBevLightRed;
+          sc.stop_lines.push_back({p + n * hw, p - n * hw, ch});
+          break;
+        }
+        arc += len;
+      }
+      break;
+    }
+  }
+  return sc;
+}
+
+void World::render(uint8_t* out) const { renderer_->render(scene(), out); }
+
+std::string World::add_scripted_vehicle(const std::string& lane_id, double pos, double speed) {
+  const LaneGeom* g = map_.find(lane_id);
+  if (!g) throw SimError("unknown lane " + lane_id);
+  std::string id = "scripted" + std::to_string(scripted_++);
+  sumo_call("cannot add scripted vehicle", [&] {
+    libsumo::Route::add(id + "_r", {g->edge});
+    char p[32], v[32];
+    std::snprintf(p, sizeof p, "%.3f", pos);
+    std::snprintf(v, sizeof v, "%.3f", speed);
+    libsumo::Vehicle::add(id, id + "_r", "DEFAULT_VEHTYPE", "now", std::to_string(g->index), p, v);
+    libsumo::Vehicle::setSpeedMode(id, 0);
+    libsumo::Vehicle::setLaneChangeMode(id, 0);
+    libsumo::Vehicle::setSpeed(id, speed);
+  });
+  return id;
+}
+
+void World::set_vehicle_speed(const std::string& id, double speed) {
+  sumo_call("cannot set speed of " + id, [&] { libsumo::Vehicle::setSpeed(id, speed); });
+}
+
+}  // namespace cd
