@@ -1,6 +1,9 @@
 #include "collect/collect.hpp"
 
+#include <sys/prctl.h>
 #include <sys/wait.h>
+
+#include <csignal>
 #include <unistd.h>
 
 #include <algorithm>
@@ -92,12 +95,16 @@ WorkerRun run_workers(const Settings& settings, const std::vector<int>& todo,
   if (pipe(fds) != 0) throw IoError("cannot create a pipe for the workers");
   std::fflush(nullptr);
   std::vector<pid_t> pids;
+  const pid_t parent = getpid();
   for (int w = 0; w < k; ++w) {
     std::vector<int> mine;
     for (size_t j = w; j < todo.size(); j += k) mine.push_back(todo[j]);
     pid_t pid = fork();
     if (pid < 0) throw Error("cannot start a worker process: " + std::string(std::strerror(errno)));
     if (pid == 0) {
+      // A killed parent takes its workers along: no orphan keeps writing into the folder.
+      prctl(PR_SET_PDEATHSIG, SIGKILL);
+      if (getppid() != parent) _exit(1);
       close(fds[0]);
       worker_main(settings, mine, options, fds[1]);
     }

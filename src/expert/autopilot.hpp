@@ -18,6 +18,11 @@ class Autopilot {
   Control act(const World& w) const;
 
  private:
+  struct Plan {
+    double speed = 0;     // target speed now
+    double stop = 1e9;    // m to the nearest place the ego must stand still
+  };
+  Plan plan(const World& w) const;
   ExpertSettings s_;
 };
 

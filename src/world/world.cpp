@@ -116,7 +116,7 @@ std::vector<std::string> World::sumo_args(uint64_t seed) const {
           "--collision.mingap-factor", "0",
           "--collision.check-junctions", "true",
           "--ignore-route-errors", "true",
-          "--time-to-teleport", "120",
+          "--time-to-teleport", "300",
           "--pedestrian.model", "striping"};
 }
 
@@ -185,10 +185,19 @@ void World::build_map() {
       if (!map_.find(c.approachedLane)) continue;
       Link l{c.approachedLane, c.approachedInternal, c.direction.empty() ? 's' : c.direction[0]};
       out.push_back(l);
-      if (!g.internal && !c.approachedInternal.empty()) {
+      if (!g.internal && !c.approachedInternal.empty())
         approach_of_via_[c.approachedInternal] = g.id;
-        foes_[c.approachedInternal] = libsumo::Lane::getInternalFoes(c.approachedInternal);
-      }
+    }
+  }
+  // Every internal lane knows the first internal lane (the via) of its connection.
+  for (const auto& [via, approach] : approach_of_via_) {
+    std::string lane = via;
+    for (int guard = 0; guard < 16 && !lane.empty() && lane[0] == ':'; ++guard) {
+      via_head_[lane] = via;
+      auto it = links_.find(lane);
+      if (it == links_.end() || it->second.empty()) break;
+      const Link& l = it->second.front();
+      lane = l.via_lane.empty() ? l.to_lane : l.via_lane;
     }
   }
   car_edges_.assign(car_edges.begin(), car_edges.end());
@@ -422,8 +431,8 @@ StepResult World::check_events(bool present) {
     }
   }
   if (!present) {
-    if (r.outcome != Outcome::Collision)
-      throw SimError("the ego vehicle left the simulation unexpectedly (teleported or removed)");
+    // SUMO teleports a vehicle stuck for --time-to-teleport: for the ego that is a timeout.
+    if (r.outcome != Outcome::Collision) r.outcome = Outcome::Timeout;
     return r;
   }
   std::string prev_lane = ego_.lane;
@@ -612,77 +621,43 @@ void World::compute_truth() {
     prev_link_distance_ = 1e9;
   }
 
-  // The next junction on the path: its via lane and the approach lane before it.
-  const PathLane* via = nullptr;
-  const PathLane* approach = nullptr;
-  for (size_t i = 0; i < path_.size(); ++i) {
+  // The next junction on the path (or the one the ego is in): its internal lanes, the
+  // approach lane before them, and the state and direction of the ego's link.
+  size_t j0 = path_.size();
+  for (size_t i = 0; i < path_.size(); ++i)
     if (path_[i].lane->internal) {
-      via = &path_[i];
-      approach = i > 0 ? &path_[i - 1] : nullptr;
+      j0 = i;
       break;
     }
-  }
   command_ = kFollow;
-  if (via) {
-    gt.junction_distance = via->s_begin;
-    char dir = 's';
-    char state = 'O';
-    std::string approach_id = approach ? approach->lane->id : "";
-    if (!approach) {
-      auto it = approach_of_via_.find(via->lane->id);
-      if (it != approach_of_via_.end()) approach_id = it->second;
-    }
-    if (!approach_id.empty()) {
-      for (const auto& c : libsumo::Lane::getLinks(approach_id)) {
-        if (c.approachedInternal == via->lane->id) {
+  gt.junction_distance = j0 < path_.size() ? path_[j0].s_begin : 0.0;
+  gt.junction_exit_distance = 0;
+  if (j0 < path_.size()) {
+    size_t j1 = j0;
+    while (j1 < path_.size() && path_[j1].lane->internal) ++j1;
+    gt.junction_exit_distance =
+        j1 < path_.size() ? path_[j1].s_begin
+                          : path_[j1 - 1].s_begin + path_[j1 - 1].lane->length - path_[j1 - 1].from_pos;
+    const bool inside = j0 == 0;
+    const std::string& head = via_head(path_[j0].lane->id);
+    auto ait = approach_of_via_.find(head);
+    char dir = 's', state = 'O';
+    if (ait != approach_of_via_.end()) {
+      for (const auto& c : libsumo::Lane::getLinks(ait->second))
+        if (c.approachedInternal == head) {
           dir = c.direction.empty() ? 's' : c.direction[0];
           state = c.state.empty() ? 'O' : c.state[0];
         }
+    }
+    if (inside || gt.junction_distance <= settings_.world.command_horizon) command_ = command_of(dir);
+    const bool minor = !is_upper(state) || state == 'O';
+    for (size_t j = inside ? 1 : j0; j < j1 && !gt.must_yield; ++j) {
+      if (junction_lane_blocked(path_[j].lane->id, minor)) {
+        gt.must_yield = true;
+        // Before the junction the ego waits at its entry; inside, where the blocked part starts.
+        gt.yield_distance = inside ? path_[j].s_begin : gt.junction_distance;
       }
     }
-    if (gt.junction_distance <= settings_.world.command_horizon) command_ = command_of(dir);
-    // Inside the junction the ego is committed; before it, check who holds the junction.
-    if (approach && gt.junction_distance < kPathHorizon) {
-      bool minor = !is_upper(state) || state == 'O';
-      auto fit = foes_.find(via->lane->id);
-      if (fit != foes_.end()) {
-        for (const std::string& foe : fit->second) {
-          const LaneGeom* fg = map_.find(foe);
-          if (!fg) continue;
-          if (fg->kind == LaneKind::Crossing) {
-            if (!libsumo::Edge::getLastStepPersonIDs(fg->edge).empty()) gt.must_yield = true;
-            continue;
-          }
-          if (fg->kind != LaneKind::Driving) continue;
-          for (const std::string& v : libsumo::Lane::getLastStepVehicleIDs(foe)) {
-            // A car waiting inside the junction yields to a prioritised ego.
-            if (minor || libsumo::Vehicle::getSpeed(v) > 1.0) gt.must_yield = true;
-          }
-          if (!minor) continue;
-          auto ait = approach_of_via_.find(foe);
-          if (ait == approach_of_via_.end()) continue;
-          char foe_state = 'O';
-          for (const auto& c : libsumo::Lane::getLinks(ait->second))
-            if (c.approachedInternal == foe) foe_state = c.state.empty() ? 'O' : c.state[0];
-          if (!is_upper(foe_state) || foe_state == 'O') continue;
-          double len = libsumo::Lane::getLength(ait->second);
-          for (const std::string& v : libsumo::Lane::getLastStepVehicleIDs(ait->second)) {
-            double dist = len - libsumo::Vehicle::getLanePosition(v);
-            double sp = libsumo::Vehicle::getSpeed(v);
-            if (dist < 12.0 || dist / std::max(sp, 0.1) < xs.yield_time) gt.must_yield = true;
-          }
-        }
-      }
-    }
-  } else if (!ego_.lane.empty() && ego_.lane[0] == ':') {
-    gt.junction_distance = 0;
-  }
-  if (!path_.empty() && path_.front().lane->internal) {
-    // Inside a junction: the command is the turn being driven.
-    auto it = links_.find(approach_of_via_.count(ego_.lane) ? approach_of_via_.at(ego_.lane) : "");
-    if (it != links_.end())
-      for (const Link& l : it->second)
-        if (l.via_lane == ego_.lane) command_ = command_of(l.direction);
   }
 
   double v = ego_.speed;
@@ -691,8 +666,63 @@ void World::compute_truth() {
   gt.path_free = !(gt.lead_present && gt.lead_distance < d) &&
                  !((gt.tl_state == kTlRed || gt.tl_state == kTlYellow) && gt.tl_distance < d) &&
                  !(gt.ped_on_path && gt.ped_distance < d) &&
-                 !(gt.must_yield && via && gt.junction_distance < d);
+                 !(gt.must_yield && gt.yield_distance < d);
   truth_ = gt;
+}
+
+const std::string& World::via_head(const std::string& internal_lane) const {
+  auto it = via_head_.find(internal_lane);
+  return it == via_head_.end() ? internal_lane : it->second;
+}
+
+const std::vector<std::string>& World::internal_foes(const std::string& lane) {
+  auto it = foes_.find(lane);
+  if (it == foes_.end()) it = foes_.emplace(lane, libsumo::Lane::getInternalFoes(lane)).first;
+  return it->second;
+}
+
+bool World::junction_lane_blocked(const std::string& lane, bool minor) {
+  const ExpertSettings& xs = settings_.expert;
+  for (const std::string& foe : internal_foes(lane)) {
+    const LaneGeom* fg = map_.find(foe);
+    if (!fg) continue;
+    if (fg->kind == LaneKind::Crossing) {
+      // Pedestrians on the crossing, or walking towards it from the corner.
+      for (const Actor& a : actors_) {
+        if (!a.pedestrian) continue;
+        std::string road = libsumo::Person::getRoadID(a.id);
+        if (road == fg->edge) return true;
+        if (!getenv("NO_NEXT") && !road.empty() && road[0] == ':' && a.speed > 0.2 &&
+            libsumo::Person::getNextEdge(a.id) == fg->edge)
+          return true;
+      }
+      continue;
+    }
+    if (fg->kind != LaneKind::Driving) continue;
+    for (const std::string& v : libsumo::Lane::getLastStepVehicleIDs(foe)) {
+      // A car waiting inside the junction yields to a prioritised ego.
+      if (v != kEgo && (minor || libsumo::Vehicle::getSpeed(v) > 1.0)) return true;
+    }
+    if (!minor) continue;
+    // Priority traffic about to enter the foe lane.
+    const std::string& head = via_head(foe);
+    auto ait = approach_of_via_.find(head);
+    if (ait == approach_of_via_.end()) continue;
+    char foe_state = 'O';
+    for (const auto& c : libsumo::Lane::getLinks(ait->second))
+      if (c.approachedInternal == head) foe_state = c.state.empty() ? 'O' : c.state[0];
+    if (!is_upper(foe_state) || foe_state == 'O') continue;
+    const LaneGeom* ag = map_.find(ait->second);
+    double len = ag ? ag->length : libsumo::Lane::getLength(ait->second);
+    for (const std::string& v : libsumo::Lane::getLastStepVehicleIDs(ait->second)) {
+      // Stopped cars do not count: they wait for something else, and SUMO's drivers brake
+      // for a car already inside the junction when they start.
+      double dist = len - libsumo::Vehicle::getLanePosition(v);
+      double sp = libsumo::Vehicle::getSpeed(v);
+      if (sp > 0.5 && dist / sp < xs.yield_time) return true;
+    }
+  }
+  return false;
 }
 
 BevScene World::scene() const {

@@ -52,7 +52,9 @@ struct GroundTruth {
   bool ped_on_path = false;
   double ped_distance = 0;    // m, first pedestrian on (or about to step on) the path
   bool must_yield = false;    // priority traffic or pedestrians hold the next junction
+  double yield_distance = 0;  // m to where the ego must wait when must_yield
   double junction_distance = 0;  // m to the next junction entry (0 inside one)
+  double junction_exit_distance = 0;  // m to the end of that junction
   double path_free_distance = 0; // m checked for path_free
   bool path_free = true;
 };
@@ -146,6 +148,11 @@ class World {
   void compute_path();
   void compute_truth();
   bool on_path(Vec2 p, double half_width, double* s) const;
+  const std::string& via_head(const std::string& internal_lane) const;
+  const std::vector<std::string>& internal_foes(const std::string& lane);
+  // Must a car about to use this internal lane wait (pedestrians on or heading for a foe
+  // crossing, cars in the conflict area, priority cars arriving when the ego's link is minor)?
+  bool junction_lane_blocked(const std::string& lane, bool minor);
   StepResult check_events(bool ego_present);
   std::vector<std::string> route_lane_sequence() const;
 
@@ -156,7 +163,8 @@ class World {
   std::unique_ptr<BevRenderer> renderer_;
   std::unordered_map<std::string, std::vector<Link>> links_;       // lane -> outgoing links
   std::unordered_map<std::string, std::string> approach_of_via_;   // via lane -> approach lane
-  std::unordered_map<std::string, std::vector<std::string>> foes_; // via lane -> foe lanes
+  std::unordered_map<std::string, std::string> via_head_;          // internal lane -> its via
+  std::unordered_map<std::string, std::vector<std::string>> foes_; // internal lane -> foe lanes
   std::unordered_map<std::string, const LaneGeom*> edge_lane_;  // car edge -> rightmost car lane
   std::unordered_map<std::string, double> sidewalk_length_;     // edge -> its sidewalk length
   std::vector<std::string> car_edges_;  // normal edges with a lane for cars

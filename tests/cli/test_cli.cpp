@@ -1,0 +1,177 @@
+// The causaldrive binary: error paths (one line "causaldrive: error: ...", exit code 1),
+// --help of every subcommand, `town --list`, `bench world --json`.
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "../support/test_support.hpp"
+
+namespace cd {
+namespace {
+
+using test::CommandResult;
+using test::TempDir;
+
+// The contract of every user error: exit code 1 (no signal, no core dump) and exactly one
+// line on stderr starting with "causaldrive: error:". Returns that line.
+std::string expect_one_line_error(const CommandResult& r, const std::string& what) {
+  EXPECT_FALSE(r.timed_out) << what;
+  EXPECT_TRUE(r.exited) << what << ": " << r.describe();
+  EXPECT_FALSE(r.core_dumped) << what;
+  EXPECT_EQ(r.exit_code, 1) << what << ": " << r.describe();
+  std::vector<std::string> lines = test::split_lines(r.err);
+  EXPECT_EQ(lines.size(), 1u) << what << ": stderr should be one line:\n" << r.err;
+  if (lines.empty()) return "";
+  EXPECT_TRUE(test::starts_with(lines.front(), "causaldrive: error:"))
+      << what << ": " << lines.front();
+  return lines.front();
+}
+
+bool has(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+TEST(CliErrors, MissingConfigFile) {
+  TempDir dir("cdtest-cli");
+  CommandResult r =
+      test::run_cli({"collect", "--config", "/nonexistent.toml", "--out", dir / "data"});
+  std::string line = expect_one_line_error(r, "collect --config /nonexistent.toml");
+  EXPECT_TRUE(has(line, "/nonexistent.toml")) << line;
+  EXPECT_TRUE(has(line, "not found")) << line;
+  EXPECT_FALSE(test::fs::exists(dir / "data")) << "nothing should be written on a config error";
+}
+
+TEST(CliErrors, MalformedConfig) {
+  TempDir dir("cdtest-cli");
+  const std::string config = dir / "bad.toml";
+  test::write_text(config, "[world]\ntown = \"town-a\"\ntraffic = = 3\n");
+  CommandResult r = test::run_cli({"collect", "--config", config, "--out", dir / "data"});
+  std::string line = expect_one_line_error(r, "collect with malformed TOML");
+  EXPECT_TRUE(has(line, config)) << line;
+  EXPECT_TRUE(has(line, config + ":3") || has(line, "line 3")) << line;
+  EXPECT_FALSE(test::fs::exists(dir / "data"));
+}
+
+TEST(CliErrors, UnknownConfigKey) {
+  TempDir dir("cdtest-cli");
+  const std::string config = dir / "unknown.toml";
+  test::write_text(config, test::test_config_toml("empty", "\n[collect.noise]\nfoo = 1\n"));
+  CommandResult r = test::run_cli({"collect", "--config", config, "--out", dir / "data"});
+  std::string line = expect_one_line_error(r, "collect with an unknown key");
+  EXPECT_TRUE(has(line, "collect.noise.foo")) << line;
+  EXPECT_TRUE(has(line, config)) << line;
+
+  // The same for every subcommand that takes a config.
+  r = test::run_cli({"bench", "world", "--config", config, "--steps", "10"});
+  line = expect_one_line_error(r, "bench world with an unknown key");
+  EXPECT_TRUE(has(line, "collect.noise.foo")) << line;
+  r = test::run_cli({"town", "town-a", "--config", config});
+  line = expect_one_line_error(r, "town with an unknown key");
+  EXPECT_TRUE(has(line, "collect.noise.foo")) << line;
+}
+
+TEST(CliErrors, TownPreviewOfMissingNetwork) {
+  TempDir dir("cdtest-cli");
+  CommandResult r =
+      test::run_cli({"town", "--net", "/nonexistent.net.xml", "--preview", dir / "x.png"});
+  std::string line = expect_one_line_error(r, "town --net /nonexistent.net.xml");
+  EXPECT_TRUE(has(line, "/nonexistent.net.xml")) << line;
+  EXPECT_FALSE(test::fs::exists(dir / "x.png"));
+}
+
+TEST(CliErrors, TownPreviewOfBrokenNetwork) {
+  TempDir dir("cdtest-cli");
+  const std::string net = dir / "BROKEN.net.xml";
+  test::write_text(net, "not xml\n");
+  CommandResult r = test::run_cli({"town", "--net", net, "--preview", dir / "x.png"});
+  std::string line = expect_one_line_error(r, "town --net BROKEN.net.xml");
+  EXPECT_TRUE(has(line, "BROKEN.net.xml")) << line;
+  EXPECT_FALSE(test::fs::exists(dir / "x.png"));
+}
+
+TEST(CliErrors, CollectOnMissingNetwork) {
+  TempDir dir("cdtest-cli");
+  const std::string config = test::write_test_config(dir);
+  CommandResult r = test::run_cli({"collect", "--config", config, "--town", "/nonexistent.net.xml",
+                                   "--out", dir / "data"});
+  std::string line = expect_one_line_error(r, "collect --town /nonexistent.net.xml");
+  EXPECT_TRUE(has(line, "/nonexistent.net.xml")) << line;
+  for (const std::string& name : test::list_dir(dir / "data"))
+    EXPECT_FALSE(test::ends_with(name, ".h5")) << name;
+}
+
+TEST(CliErrors, UnknownTownName) {
+  CommandResult r = test::run_cli({"town", "town-zzz"});
+  std::string line = expect_one_line_error(r, "town town-zzz");
+  EXPECT_TRUE(has(line, "town-zzz")) << line;
+  EXPECT_TRUE(has(line, "town-a")) << "should list the known towns: " << line;
+}
+
+TEST(CliHelp, EverySubcommandHasHelp) {
+  const std::vector<std::vector<std::string>> commands = {
+      {"--help"},          {"quickstart", "--help"}, {"town", "--help"},
+      {"collect", "--help"}, {"bench", "--help"},    {"bench", "world", "--help"},
+      {"train", "--help"}, {"eval", "--help"},       {"granger", "--help"},
+      {"report", "--help"}};
+  for (const auto& args : commands) {
+    std::string cmd;
+    for (const auto& a : args) cmd += a + " ";
+    CommandResult r = test::run_cli(args);
+    EXPECT_TRUE(r.exited && r.exit_code == 0) << cmd << ": " << r.describe();
+    EXPECT_TRUE(has(r.out, "Usage")) << cmd << ": " << r.out;
+    if (args.size() > 1) {
+      EXPECT_TRUE(has(r.out, args[args.size() - 2])) << cmd << ": " << r.out;
+    }
+  }
+  CommandResult collect = test::run_cli({"collect", "--help"});
+  for (const char* opt : {"--config", "--episodes", "--workers", "--seed", "--out", "--png"})
+    EXPECT_TRUE(has(collect.out, opt)) << "collect --help should mention " << opt;
+}
+
+TEST(CliTown, ListShowsTheBuiltInTowns) {
+  CommandResult r = test::run_cli({"town", "--list"});
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  std::vector<std::string> names;
+  for (const std::string& line : test::split_lines(r.out)) {
+    std::string first = line.substr(0, line.find_first_of(" \t"));
+    if (!first.empty()) names.push_back(first);
+  }
+  for (const char* town : {"town-a", "town-b", "town-c"})
+    EXPECT_NE(std::find(names.begin(), names.end(), town), names.end())
+        << town << " missing from:\n" << r.out;
+}
+
+TEST(CliTown, PreviewOfABuiltInTownIsAPng) {
+  TempDir dir("cdtest-cli");
+  const std::string png = dir / "a.png";
+  CommandResult r = test::run_cli({"town", "town-a", "--preview", png});
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  ASSERT_TRUE(test::fs::exists(png)) << r.describe();
+  EXPECT_EQ(test::read_text(png).substr(0, 8), "\x89PNG\r\n\x1a\n");
+}
+
+TEST(CliBench, WorldJsonHasTheThreeRates) {
+  TempDir dir("cdtest-cli");
+  const std::string config = test::write_test_config(dir, "regular");
+  CommandResult r = test::run_cli({"bench", "world", "--config", config, "--steps", "300", "--json"});
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  std::vector<std::string> lines = test::split_lines(r.out);
+  ASSERT_EQ(lines.size(), 1u) << "stdout should be one JSON object:\n" << r.out;
+  nlohmann::json j;
+  ASSERT_NO_THROW(j = nlohmann::json::parse(lines.front())) << lines.front();
+  ASSERT_TRUE(j.is_object()) << lines.front();
+  for (const char* key : {"sumo_steps_per_s", "full_steps_per_s", "ratio"}) {
+    ASSERT_TRUE(j.contains(key)) << key << " missing: " << lines.front();
+    ASSERT_TRUE(j[key].is_number()) << key << ": " << lines.front();
+    EXPECT_GT(j[key].get<double>(), 0.0) << key;
+  }
+  const double sumo = j["sumo_steps_per_s"], full = j["full_steps_per_s"], ratio = j["ratio"];
+  EXPECT_NEAR(ratio, full / sumo, 1e-9 * std::max(1.0, ratio));
+}
+
+}  // namespace
+}  // namespace cd

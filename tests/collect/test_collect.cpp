@@ -1,0 +1,277 @@
+// Expert data collection through the real CLI: files and their layout (checked with h5py),
+// determinism, resuming after the whole process group was killed, PNG frames.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+
+#include <chrono>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "../support/test_support.hpp"
+#include "collect/collect.hpp"
+#include "core/error.hpp"
+#include "data/h5_episode.hpp"
+
+namespace cd {
+namespace {
+
+using test::CommandResult;
+using test::TempDir;
+
+bool is_episode_name(const std::string& name) {
+  return test::starts_with(name, "episode_") && test::ends_with(name, ".h5");
+}
+
+std::vector<std::string> episode_files(const std::string& dir) {
+  std::vector<std::string> out;
+  for (const auto& n : test::list_dir(dir))
+    if (is_episode_name(n)) out.push_back(n);
+  return out;
+}
+
+std::vector<std::string> tmp_files(const std::string& dir) {
+  std::vector<std::string> out;
+  for (const auto& n : test::list_dir(dir))
+    if (test::ends_with(n, ".tmp")) out.push_back(n);
+  return out;
+}
+
+CommandResult collect_cli(const std::string& config, const std::string& out, int episodes,
+                          int workers, const std::vector<std::string>& more = {}) {
+  std::vector<std::string> args = {"collect", "--config", config, "--episodes",
+                                   std::to_string(episodes), "--workers", std::to_string(workers),
+                                   "--out", out};
+  args.insert(args.end(), more.begin(), more.end());
+  return test::run_cli(args);
+}
+
+// The h5py oracle: shapes and types of one or more episode files (SPEC section 2).
+const char* kLayoutScript = R"PY(
+import sys
+import h5py
+import numpy as np
+
+for path in sys.argv[1:]:
+    with h5py.File(path, "r") as f:
+        for name in ["bev", "speed", "action", "command", "pose"]:
+            assert name in f, f"{path}: dataset {name} missing"
+        assert "causes" in f and isinstance(f["causes"], h5py.Group), f"{path}: causes/ missing"
+        T = f["speed"].shape[0]
+        assert T > 0, f"{path}: no frames"
+        lengths = {name: f[name].shape[0] for name in ["bev", "speed", "action", "command", "pose"]}
+        causes = list(f["causes"].keys())
+        assert len(causes) > 0, f"{path}: causes/ is empty"
+        for c in causes:
+            lengths["causes/" + c] = f["causes"][c].shape[0]
+        assert all(n == T for n in lengths.values()), f"{path}: first dimensions differ: {lengths}"
+        bev = f["bev"]
+        assert bev.dtype == np.uint8, f"{path}: bev is {bev.dtype}"
+        assert bev.ndim == 4, f"{path}: bev has {bev.ndim} dims"
+        assert f["speed"].dtype == np.float32 and f["speed"].ndim == 1
+        assert f["action"].dtype == np.float32 and f["action"].ndim == 2
+        assert f["command"].dtype == np.int32 and f["command"].ndim == 1
+        assert f["pose"].dtype == np.float32 and f["pose"].shape == (T, 3)
+        for attr in ["town", "seed", "dt", "format_version", "suite", "channels",
+                     "metres_per_pixel"]:
+            assert attr in f.attrs, f"{path}: attribute {attr} missing"
+        town = f.attrs["town"]
+        town = town.decode() if isinstance(town, bytes) else str(town)
+        assert town == "town-a", f"{path}: town {town!r}"
+        assert abs(float(f.attrs["dt"]) - 0.1) < 1e-9, f"{path}: dt {f.attrs['dt']}"
+        assert bev.shape[1] == len(f.attrs["channels"]), f"{path}: channels do not match bev"
+        frame = bev[T - 1]
+        assert set(np.unique(frame)).issubset({0, 255}), f"{path}: bev values {np.unique(frame)}"
+        assert frame.max() == 255, f"{path}: an empty frame"
+        speed = f["speed"][:]
+        assert np.all(speed >= 0) and np.all(np.isfinite(speed)), f"{path}: bad speeds"
+        action = f["action"][:]
+        assert np.all((action >= 0) & (action <= 1)), f"{path}: actions outside [0,1]"
+    print("ok", path)
+)PY";
+
+TEST(Collect, WritesEpisodesWithTheDatasetLayout) {
+  TempDir dir("cdtest-collect");
+  const std::string config = test::write_test_config(dir, "regular");
+  const std::string out = dir / "data";
+  CommandResult r = collect_cli(config, out, 2, 2);
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  EXPECT_TRUE(test::starts_with(r.out, "episodes in")) << r.out;
+  EXPECT_NE(r.out.find("recorded now: 2"), std::string::npos) << r.out;
+
+  std::vector<std::string> names = test::list_dir(out);
+  EXPECT_EQ(names, (std::vector<std::string>{"collect.json", "episode_000000.h5",
+                                             "episode_000001.h5"}));
+  CommandResult py = test::run_python(kLayoutScript,
+                                      {out + "/episode_000000.h5", out + "/episode_000001.h5"}, dir);
+  EXPECT_TRUE(py.exited && py.exit_code == 0) << py.describe();
+
+  // The C++ reader agrees.
+  for (int i = 0; i < 2; ++i) {
+    EpisodeMeta meta;
+    EpisodeData d = read_episode(out + "/" + episode_file_name(i), &meta);
+    EXPECT_GT(d.frames(), 0u);
+    EXPECT_EQ(meta.town, "town-a");
+    EXPECT_EQ(meta.dt, 0.1);
+    EXPECT_FALSE(meta.outcome.empty());
+  }
+
+  nlohmann::json manifest = nlohmann::json::parse(test::read_text(out + "/collect.json"));
+  ASSERT_TRUE(manifest.contains("episodes"));
+  ASSERT_EQ(manifest["episodes"].size(), 2u);
+  EXPECT_EQ(manifest["episodes"][0]["file"], "episode_000000.h5");
+  EXPECT_EQ(manifest["episodes"][1]["file"], "episode_000001.h5");
+  ASSERT_TRUE(manifest.contains("settings"));
+  EXPECT_EQ(manifest["settings"]["world"]["traffic"], "regular");
+  EXPECT_EQ(manifest["settings"]["collect"]["episodes"], 2);
+  EXPECT_EQ(manifest["settings"]["collect"]["out"], out);
+}
+
+TEST(Collect, IsDeterministicAndSeedDependent) {
+  TempDir dir("cdtest-collect");
+  const std::string config = test::write_test_config(dir, "regular");
+  const std::string a = dir / "a", b = dir / "b", c = dir / "c", d = dir / "d";
+  CommandResult ra = collect_cli(config, a, 2, 2);
+  CommandResult rb = collect_cli(config, b, 2, 2);
+  CommandResult rc = collect_cli(config, c, 2, 1);  // the worker count changes nothing
+  CommandResult rd = collect_cli(config, d, 2, 2, {"--seed", "7"});
+  for (const CommandResult* r : {&ra, &rb, &rc, &rd})
+    ASSERT_TRUE(r->exited && r->exit_code == 0) << r->describe();
+  for (int i = 0; i < 2; ++i) {
+    const std::string name = episode_file_name(i);
+    const std::string fa = test::read_text(a + "/" + name);
+    ASSERT_FALSE(fa.empty());
+    EXPECT_TRUE(fa == test::read_text(b + "/" + name)) << name << " differs between two runs";
+    EXPECT_TRUE(fa == test::read_text(c + "/" + name)) << name << " depends on --workers";
+    EXPECT_FALSE(fa == test::read_text(d + "/" + name)) << name << " ignores --seed";
+  }
+  auto episodes = [](const std::string& folder) {
+    return nlohmann::json::parse(test::read_text(folder + "/collect.json"))["episodes"];
+  };
+  EXPECT_EQ(episodes(a), episodes(b));
+  EXPECT_NE(episodes(a), episodes(d));
+}
+
+TEST(Collect, ResumesAfterTheProcessGroupWasKilled) {
+  TempDir dir("cdtest-collect");
+  // Longer routes than the other tests, so that the run is still going when it is killed.
+  const std::string config = dir / "resume.toml";
+  {
+    std::string text = test::test_config_toml("regular");
+    for (auto [from, to] : {std::pair<std::string, std::string>{"min_route_m = 100", "min_route_m = 400"},
+                            {"max_route_m = 200", "max_route_m = 700"}}) {
+      auto at = text.find(from);
+      ASSERT_NE(at, std::string::npos) << from;
+      text.replace(at, from.size(), to);
+    }
+    test::write_text(config, text);
+  }
+  const int kEpisodes = 6;
+  const std::string out = dir / "data", ref = dir / "ref";
+  const std::vector<std::string> argv = {CD_BINARY, "collect", "--config", config,
+                                         "--episodes", std::to_string(kEpisodes),
+                                         "--workers", "1", "--out", out};
+
+  pid_t pid = test::spawn_group(argv, dir / "bg.out", dir / "bg.err");
+  const std::string second = out + "/" + episode_file_name(1);
+  auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  bool exited_early = false;
+  while (!test::fs::exists(second)) {
+    int status = 0;
+    if (::waitpid(pid, &status, WNOHANG) == pid) {
+      exited_early = true;
+      break;
+    }
+    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "episode 1 never appeared";
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  ASSERT_FALSE(exited_early) << "collect exited before episode 1 was written:\n"
+                             << test::read_text(dir / "bg.err");
+  ASSERT_EQ(::kill(-pid, SIGKILL), 0);
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  EXPECT_TRUE(WIFSIGNALED(status));
+  // Workers are in the same group; give the kernel a moment to reap them.
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+
+  const std::vector<std::string> after_kill = episode_files(out);
+  ASSERT_LT(after_kill.size(), static_cast<size_t>(kEpisodes))
+      << "the run finished before it was killed: the test proves nothing";
+  for (const std::string& name : test::list_dir(out)) {
+    if (is_episode_name(name)) {
+      EXPECT_NO_THROW(read_episode(out + "/" + name)) << name << " is incomplete";
+    } else {
+      EXPECT_TRUE(test::ends_with(name, ".tmp")) << "unexpected leftover " << name;
+    }
+  }
+
+  CommandResult resumed = test::run_cli(std::vector<std::string>(argv.begin() + 1, argv.end()));
+  ASSERT_TRUE(resumed.exited && resumed.exit_code == 0) << resumed.describe();
+  EXPECT_NE(resumed.out.find("recorded now: " + std::to_string(kEpisodes - after_kill.size())),
+            std::string::npos)
+      << resumed.out;
+  EXPECT_EQ(episode_files(out).size(), static_cast<size_t>(kEpisodes));
+  EXPECT_TRUE(tmp_files(out).empty()) << "temporary files left after the resumed run";
+
+  CommandResult whole = collect_cli(config, ref, kEpisodes, 1);
+  ASSERT_TRUE(whole.exited && whole.exit_code == 0) << whole.describe();
+  for (int i = 0; i < kEpisodes; ++i) {
+    const std::string name = episode_file_name(i);
+    EXPECT_TRUE(test::read_text(out + "/" + name) == test::read_text(ref + "/" + name))
+        << name << " of the resumed run differs from the uninterrupted run";
+  }
+
+  // A complete folder: nothing to record, nothing changed.
+  const std::string before = test::read_text(out + "/" + episode_file_name(0));
+  CommandResult again = test::run_cli(std::vector<std::string>(argv.begin() + 1, argv.end()));
+  ASSERT_TRUE(again.exited && again.exit_code == 0) << again.describe();
+  EXPECT_NE(again.out.find("recorded now: 0"), std::string::npos) << again.out;
+  EXPECT_EQ(episode_files(out).size(), static_cast<size_t>(kEpisodes));
+  EXPECT_TRUE(test::read_text(out + "/" + episode_file_name(0)) == before);
+}
+
+TEST(Collect, DamagedEpisodeFileIsRecordedAgain) {
+  TempDir dir("cdtest-collect");
+  const std::string config = test::write_test_config(dir, "empty");
+  const std::string out = dir / "data";
+  CommandResult r = collect_cli(config, out, 2, 1);
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  const std::string good = test::read_text(out + "/" + episode_file_name(1));
+  test::write_text(out + "/" + episode_file_name(1), good.substr(0, good.size() / 2));
+  test::write_text(out + "/" + episode_file_name(0) + ".12345.tmp", "leftover");
+  r = collect_cli(config, out, 2, 1);
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  EXPECT_NE(r.out.find("recorded now: 1"), std::string::npos) << r.out;
+  EXPECT_TRUE(test::read_text(out + "/" + episode_file_name(1)) == good);
+  EXPECT_TRUE(tmp_files(out).empty());
+}
+
+TEST(Collect, PngFramesAreWritten) {
+  TempDir dir("cdtest-collect");
+  const std::string config = test::write_test_config(dir, "empty");
+  const std::string out = dir / "data", png = dir / "png";
+  CommandResult r = collect_cli(config, out, 1, 1, {"--png", png});
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  EpisodeData d = read_episode(out + "/" + episode_file_name(0));
+  ASSERT_GT(d.frames(), 0u);
+
+  std::vector<std::string> pngs;
+  for (const auto& e : test::fs::recursive_directory_iterator(png))
+    if (e.is_regular_file() && e.path().extension() == ".png") pngs.push_back(e.path().string());
+  std::sort(pngs.begin(), pngs.end());
+  ASSERT_FALSE(pngs.empty()) << "no PNG under " << png;
+  EXPECT_EQ(pngs.size(), d.frames()) << "one PNG per recorded frame";
+  const std::string signature = "\x89PNG\r\n\x1a\n";
+  for (size_t i : {size_t(0), pngs.size() / 2, pngs.size() - 1}) {
+    std::string bytes = test::read_text(pngs[i]);
+    ASSERT_GE(bytes.size(), 33u) << pngs[i];
+    EXPECT_EQ(bytes.substr(0, 8), signature) << pngs[i];
+    EXPECT_EQ(bytes.substr(12, 4), "IHDR") << pngs[i];
+  }
+}
+
+}  // namespace
+}  // namespace cd

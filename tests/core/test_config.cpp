@@ -1,0 +1,216 @@
+// Settings from TOML: the shipped quickstart config equals the built-in defaults, and every
+// kind of bad input is a ConfigError that names the file and the key.
+#include "app/settings.hpp"
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "../support/test_support.hpp"
+#include "core/error.hpp"
+
+#ifndef CD_SOURCE_DIR
+#error "CD_SOURCE_DIR must be defined by the build"
+#endif
+
+namespace cd {
+namespace {
+
+using test::TempDir;
+
+// Loads `text` as a config file; returns the ConfigError message ("" when it loaded).
+std::string config_error(const std::string& text, std::string* path_out = nullptr) {
+  static int counter = 0;
+  TempDir dir("cdtest-config");
+  const std::string path = dir / ("case" + std::to_string(counter++) + ".toml");
+  test::write_text(path, text);
+  if (path_out) *path_out = path;
+  try {
+    load_settings(path);
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+bool has(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+TEST(ConfigLoad, QuickstartConfigEqualsBuiltInDefaults) {
+  const std::string path = std::string(CD_SOURCE_DIR) + "/configs/quickstart.toml";
+  Settings s = load_settings(path);
+  EXPECT_EQ(s.source, path);
+  EXPECT_EQ(Settings{}.source, "(built-in defaults)");
+  const nlohmann::json loaded = settings_to_json(s), defaults = settings_to_json(Settings{});
+  EXPECT_EQ(loaded, defaults) << "diff (defaults -> quickstart.toml): "
+                              << nlohmann::json::diff(defaults, loaded).dump(2);
+  EXPECT_FALSE(loaded.contains("source"));
+}
+
+TEST(ConfigLoad, JsonCoversEverySection) {
+  const nlohmann::json j = settings_to_json(Settings{});
+  for (const char* section : {"world", "ego", "bev", "expert", "collect"})
+    EXPECT_TRUE(j.contains(section)) << section;
+  EXPECT_EQ(j["world"]["town"], "town-a");
+  EXPECT_EQ(j["collect"]["noise"]["enabled"], false);
+}
+
+TEST(ConfigLoad, EmptyFileGivesDefaultsAndPartialFileChangesOnlyItsKeys) {
+  TempDir dir("cdtest-config");
+  const std::string empty = dir / "empty.toml";
+  test::write_text(empty, "# nothing here\n");
+  EXPECT_EQ(settings_to_json(load_settings(empty)), settings_to_json(Settings{}));
+
+  const std::string partial = dir / "partial.toml";
+  test::write_text(partial,
+                   "[world]\ntraffic = \"dense\"\nwarmup_s = 5\n"  // an integer for a number
+                   "[world.density.dense]\ncars_per_km = 12.5\n"
+                   "[bev]\nheight = 96\n"
+                   "[collect.noise]\nenabled = true\n");
+  Settings s = load_settings(partial);
+  Settings want;
+  want.world.traffic = "dense";
+  want.world.warmup_s = 5;
+  want.world.dense.cars_per_km = 12.5;
+  want.bev.height = 96;
+  want.collect.noise.enabled = true;
+  EXPECT_EQ(settings_to_json(s), settings_to_json(want));
+  EXPECT_EQ(traffic_density(s.world).cars_per_km, 12.5);
+}
+
+TEST(ConfigLoad, TestSupportConfigLoads) {
+  TempDir dir("cdtest-config");
+  Settings s = load_settings(test::write_test_config(dir, "regular"));
+  EXPECT_EQ(s.world.town, "town-a");
+  EXPECT_EQ(s.world.traffic, "regular");
+  EXPECT_EQ(s.world.warmup_s, 5.0);
+  EXPECT_EQ(s.collect.min_route_m, 100.0);
+  EXPECT_EQ(s.collect.max_route_m, 200.0);
+}
+
+TEST(ConfigErrors, MissingFile) {
+  try {
+    load_settings("/nonexistent/dir/config.toml");
+    FAIL() << "a missing file loaded";
+  } catch (const ConfigError& e) {
+    std::string msg = e.what();
+    EXPECT_TRUE(has(msg, "not found")) << msg;
+    EXPECT_TRUE(has(msg, "/nonexistent/dir/config.toml")) << msg;
+  }
+}
+
+TEST(ConfigErrors, MalformedTomlNamesFileAndLine) {
+  std::string path;
+  std::string msg = config_error("[world]\ntown = \"town-a\"\ntraffic = = \"dense\"\n", &path);
+  ASSERT_FALSE(msg.empty()) << "malformed TOML loaded";
+  EXPECT_TRUE(has(msg, path)) << msg;
+  EXPECT_TRUE(has(msg, path + ":3") || has(msg, "line 3")) << "should point at line 3: " << msg;
+
+  msg = config_error("[world\n", &path);
+  ASSERT_FALSE(msg.empty());
+  EXPECT_TRUE(has(msg, path + ":1") || has(msg, "line 1")) << msg;
+
+  msg = config_error("[collect]\nepisodes = 2\n[collect]\nseed = 1\n", &path);  // table twice
+  ASSERT_FALSE(msg.empty()) << "a redefined table loaded";
+  EXPECT_TRUE(has(msg, path)) << msg;
+}
+
+TEST(ConfigErrors, UnknownKeysAreNamedWithTheirPath) {
+  struct Case {
+    const char* text;
+    const char* key;
+  };
+  const Case cases[] = {
+      {"townn = \"town-a\"\n", "townn"},
+      {"[world]\ntownn = \"town-a\"\n", "world.townn"},
+      {"[collect.noise]\nfoo = 1\n", "collect.noise.foo"},
+      {"[world.density.regular]\ncars_per_kmm = 3\n", "world.density.regular.cars_per_kmm"},
+      {"[world.density.heavy]\ncars_per_km = 3\n", "world.density.heavy"},
+      {"[wrld]\ntown = \"town-a\"\n", "wrld"},
+      {"[ego]\nmax_accel = 3.0\nmax_acel = 3.0\n", "ego.max_acel"},
+      {"[bev]\nchannels = 8\n", "bev.channels"},
+  };
+  for (const Case& c : cases) {
+    std::string path;
+    std::string msg = config_error(c.text, &path);
+    ASSERT_FALSE(msg.empty()) << "unknown key " << c.key << " was accepted";
+    EXPECT_TRUE(has(msg, c.key)) << "should name " << c.key << ": " << msg;
+    EXPECT_TRUE(has(msg, path)) << "should name the file: " << msg;
+    EXPECT_TRUE(has(msg, "unknown")) << msg;
+  }
+}
+
+TEST(ConfigErrors, WrongTypesAreNamed) {
+  struct Case {
+    const char* text;
+    const char* key;
+  };
+  const Case cases[] = {
+      {"[world]\ndt = \"fast\"\n", "world.dt"},
+      {"[world]\ntown = 3\n", "world.town"},
+      {"[collect]\nepisodes = 2.5\n", "collect.episodes"},
+      {"[collect]\nepisodes = \"two\"\n", "collect.episodes"},
+      {"[collect.noise]\nenabled = 1\n", "collect.noise.enabled"},
+      {"[bev]\nheight = [64]\n", "bev.height"},
+      {"world = 3\n", "world"},
+      {"[ego]\nlength = true\n", "ego.length"},
+  };
+  for (const Case& c : cases) {
+    std::string path;
+    std::string msg = config_error(c.text, &path);
+    ASSERT_FALSE(msg.empty()) << "wrong type for " << c.key << " was accepted";
+    EXPECT_TRUE(has(msg, c.key)) << "should name " << c.key << ": " << msg;
+    EXPECT_TRUE(has(msg, path)) << "should name the file: " << msg;
+  }
+}
+
+TEST(ConfigErrors, OutOfRangeValuesAreNamed) {
+  struct Case {
+    const char* text;
+    const char* key;
+  };
+  const Case cases[] = {
+      {"[world]\ndt = 0\n", "world.dt"},
+      {"[world]\ndt = 5.0\n", "world.dt"},
+      {"[world]\nwarmup_s = -1\n", "world.warmup_s"},
+      {"[ego]\nmax_speed = -1\n", "ego.max_speed"},
+      {"[bev]\nheight = 4\n", "bev.height"},
+      {"[bev]\nego_row_fraction = 1.5\n", "bev.ego_row_fraction"},
+      {"[collect]\nworkers = 0\n", "collect.workers"},
+      {"[collect]\nepisodes = -3\n", "collect.episodes"},
+      {"[collect]\nseed = -1\n", "collect.seed"},
+      {"[world.density.dense]\npeds_per_km = -2\n", "world.density.dense.peds_per_km"},
+      {"[world]\ndt = nan\n", "world.dt"},
+      {"[world]\nview_radius = inf\n", "world.view_radius"},
+  };
+  for (const Case& c : cases) {
+    std::string path;
+    std::string msg = config_error(c.text, &path);
+    ASSERT_FALSE(msg.empty()) << "out-of-range " << c.text << " was accepted";
+    EXPECT_TRUE(has(msg, c.key)) << "should name " << c.key << ": " << msg;
+    EXPECT_TRUE(has(msg, path)) << "should name the file: " << msg;
+  }
+}
+
+TEST(ConfigErrors, TrafficLevelListsAllowedValues) {
+  std::string path;
+  std::string msg = config_error("[world]\ntraffic = \"heavy\"\n", &path);
+  ASSERT_FALSE(msg.empty()) << "traffic = heavy was accepted";
+  EXPECT_TRUE(has(msg, "world.traffic")) << msg;
+  EXPECT_TRUE(has(msg, "heavy")) << msg;
+  for (const char* allowed : {"empty", "regular", "dense"})
+    EXPECT_TRUE(has(msg, allowed)) << "should list " << allowed << ": " << msg;
+}
+
+TEST(ConfigErrors, InconsistentRangesAreRejected) {
+  std::string msg = config_error("[collect]\nmin_route_m = 500\nmax_route_m = 200\n");
+  EXPECT_TRUE(has(msg, "max_route_m")) << msg;
+  msg = config_error("[collect.noise]\nmin_s = 2.0\nmax_s = 1.0\n");
+  EXPECT_TRUE(has(msg, "max_s")) << msg;
+}
+
+}  // namespace
+}  // namespace cd
