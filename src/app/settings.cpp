@@ -68,6 +68,7 @@ Settings load_settings(const std::string& path) {
   st.expert.headway = x.number("headway", st.expert.headway, 0.1, 5);
   st.expert.stop_margin = x.number("stop_margin", st.expert.stop_margin, 0, 10);
   st.expert.yield_time = x.number("yield_time", st.expert.yield_time, 0, 30);
+  st.expert.vehicle_margin = x.number("vehicle_margin", st.expert.vehicle_margin, 0, 5);
   st.expert.ped_margin = x.number("ped_margin", st.expert.ped_margin, 0, 5);
   st.expert.ped_lookahead_s = x.number("ped_lookahead_s", st.expert.ped_lookahead_s, 0, 10);
   st.expert.gain = x.number("gain", st.expert.gain, 0.1, 20);
@@ -140,6 +141,7 @@ nlohmann::json settings_to_json(const Settings& s) {
                  {"headway", s.expert.headway},
                  {"stop_margin", s.expert.stop_margin},
                  {"yield_time", s.expert.yield_time},
+                 {"vehicle_margin", s.expert.vehicle_margin},
                  {"ped_margin", s.expert.ped_margin},
                  {"ped_lookahead_s", s.expert.ped_lookahead_s},
                  {"gain", s.expert.gain}};

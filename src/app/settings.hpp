@@ -47,7 +47,8 @@ struct ExpertSettings {
   double headway = 1.2;         // s
   double stop_margin = 1.0;     // m before a stop line
   double yield_time = 5.0;      // s, priority traffic closer than this in time is waited for
-  double ped_margin = 0.3;      // m, lateral margin around the path for pedestrians
+  double vehicle_margin = 0.4;  // m beside the ego's body within which a car is in the way
+  double ped_margin = 0.8;      // m beside the ego's body within which a pedestrian is
   double ped_lookahead_s = 1.5; // s, pedestrians are also checked where they will be
   double gain = 2.0;            // 1/s, speed tracking gain
 };

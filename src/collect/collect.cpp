@@ -12,6 +12,7 @@
 #include <cstring>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -49,7 +50,9 @@ void remove_stale_temporaries(const std::string& dir) {
   }
 }
 
-// Runs in the child: records the given episodes, reports each on the pipe, exits.
+// Runs in a worker: loads the network once, then records each episode in a fork of itself,
+// so that every episode starts from the same process state (SUMO keeps some state across
+// reloads) and a crash costs one episode, not the worker.
 [[noreturn]] void worker_main(const Settings& settings, const std::vector<int>& indices,
                               const CollectOptions& options, int fd) {
   auto report = [fd](const std::string& line) {
@@ -57,30 +60,50 @@ void remove_stale_temporaries(const std::string& dir) {
     ssize_t ignored = write(fd, l.data(), l.size());
     (void)ignored;
   };
-  int current = -1;
-  try {
-    World world(settings);
-    ExpertRecorder recorder(world, settings);
-    EpisodeData data;
-    EpisodeMeta meta;
-    for (int i : indices) {
-      current = i;
-      std::string png = options.png_dir.empty()
-                            ? ""
-                            : options.png_dir + "/" + fs::path(episode_file_name(i)).stem().string();
-      EpisodeSummary s = recorder.run(i, episode_seed(settings.collect.seed, i), data, meta, png);
-      write_episode(settings.collect.out + "/" + episode_file_name(i), meta, data);
-      report("done " + std::to_string(i) + " " + std::to_string(s.frames) + " " + s.outcome);
-    }
-  } catch (const std::exception& e) {
-    std::string msg = e.what();
+  auto fail = [&](int index, std::string msg) {
     std::replace(msg.begin(), msg.end(), '\n', ' ');
-    report("error " + std::to_string(current) + " " + msg);
-    close(fd);
+    report("error " + std::to_string(index) + " " + msg);
+  };
+  std::unique_ptr<World> world;
+  try {
+    world = std::make_unique<World>(settings);
+  } catch (const std::exception& e) {
+    fail(indices.empty() ? -1 : indices.front(), e.what());
     _exit(1);
   }
+  int failures = 0;
+  for (int i : indices) {
+    std::fflush(nullptr);
+    pid_t pid = fork();
+    if (pid < 0) {
+      fail(i, "cannot fork: " + std::string(std::strerror(errno)));
+      _exit(1);
+    }
+    if (pid == 0) {
+      prctl(PR_SET_PDEATHSIG, SIGKILL);
+      try {
+        ExpertRecorder recorder(*world, settings);
+        EpisodeData data;
+        EpisodeMeta meta;
+        std::string png = options.png_dir.empty()
+                              ? ""
+                              : options.png_dir + "/" + fs::path(episode_file_name(i)).stem().string();
+        EpisodeSummary s = recorder.run(i, episode_seed(settings.collect.seed, i), data, meta, png);
+        write_episode(settings.collect.out + "/" + episode_file_name(i), meta, data);
+        report("done " + std::to_string(i) + " " + std::to_string(s.frames) + " " + s.outcome);
+        _exit(0);
+      } catch (const std::exception& e) {
+        fail(i, e.what());
+        _exit(1);
+      }
+    }
+    int status = 0;
+    waitpid(pid, &status, 0);
+    if (WIFSIGNALED(status)) fail(i, "crashed with signal " + std::to_string(WTERMSIG(status)));
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) ++failures;
+  }
   close(fd);
-  _exit(0);
+  _exit(failures == 0 ? 0 : 1);
 }
 
 struct WorkerRun {

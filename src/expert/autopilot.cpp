@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 
 namespace cd {
 
@@ -46,7 +45,7 @@ Autopilot::Plan Autopilot::plan(const World& w) const {
   if (gt.must_yield) stop_at(gt.yield_distance - s_.stop_margin);
   // Keep the junction clear: enter only when there is room behind a slow leader beyond it.
   bool before_junction = gt.junction_distance > 0 && gt.junction_exit_distance > 0;
-  if (!getenv("NO_BOX") && before_junction && gt.lead_present && gt.lead_speed < 2.0 &&
+  if (before_junction && gt.lead_present && gt.lead_speed < 2.0 &&
       gt.lead_distance < gt.junction_exit_distance + w.settings().ego.length + s_.min_gap)
     stop_at(gt.junction_distance - s_.stop_margin);
   if (gt.ped_on_path) stop_at(gt.ped_distance - s_.min_gap);

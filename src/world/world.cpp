@@ -577,13 +577,13 @@ bool World::on_path(Vec2 p, double half_width, double* s_out) const {
 void World::compute_truth() {
   GroundTruth gt;
   const ExpertSettings& xs = settings_.expert;
-  double half_lane = 1.6;
-  if (const LaneGeom* g = map_.find(ego_.lane)) half_lane = g->width / 2;
+  // What the ego's own body would sweep along the path, plus a margin.
+  const double half_body = settings_.ego.width / 2;
 
   for (const Actor& a : actors_) {
     auto corners = box_corners(a.box);
     double s_min = 1e300;
-    double hw = a.pedestrian ? half_lane + xs.ped_margin : half_lane;
+    double hw = half_body + (a.pedestrian ? xs.ped_margin : xs.vehicle_margin);
     auto test = [&](Vec2 p) {
       double s;
       if (on_path(p, hw, &s)) s_min = std::min(s_min, s);
@@ -650,12 +650,13 @@ void World::compute_truth() {
         }
     }
     if (inside || gt.junction_distance <= settings_.world.command_horizon) command_ = command_of(dir);
+    // The ego decides at the junction's entry for all of its internal lanes; once inside it
+    // is committed (waiting in the middle would leave it standing in other cars' paths).
     const bool minor = !is_upper(state) || state == 'O';
-    for (size_t j = inside ? 1 : j0; j < j1 && !gt.must_yield; ++j) {
+    for (size_t j = j0; !inside && j < j1 && !gt.must_yield; ++j) {
       if (junction_lane_blocked(path_[j].lane->id, minor)) {
         gt.must_yield = true;
-        // Before the junction the ego waits at its entry; inside, where the blocked part starts.
-        gt.yield_distance = inside ? path_[j].s_begin : gt.junction_distance;
+        gt.yield_distance = gt.junction_distance;
       }
     }
   }
@@ -692,7 +693,7 @@ bool World::junction_lane_blocked(const std::string& lane, bool minor) {
         if (!a.pedestrian) continue;
         std::string road = libsumo::Person::getRoadID(a.id);
         if (road == fg->edge) return true;
-        if (!getenv("NO_NEXT") && !road.empty() && road[0] == ':' && a.speed > 0.2 &&
+        if (!road.empty() && road[0] == ':' && a.speed > 0.2 &&
             libsumo::Person::getNextEdge(a.id) == fg->edge)
           return true;
       }
