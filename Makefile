@@ -17,7 +17,7 @@ build: configure
 	@cmake --build $(BUILD_DIR) -j$(JOBS)
 
 test: build
-	@cd $(BUILD_DIR) && ctest --output-on-failure -j1
+	@cd $(BUILD_DIR) && ctest --output-on-failure -j2
 
 run: build
 	@./$(BUILD_DIR)/causaldrive quickstart

@@ -21,6 +21,7 @@
 #include "core/error.hpp"
 #include "core/progress.hpp"
 #include "data/h5_episode.hpp"
+#include "world/town.hpp"
 
 namespace fs = std::filesystem;
 
@@ -184,6 +185,7 @@ std::string episode_file_name(int index) {
 }
 
 CollectReport collect(const Settings& settings, const CollectOptions& options) {
+  resolve_network(settings.world.town);  // a bad town is one clear error, not one per worker
   const std::string& out = settings.collect.out;
   std::error_code ec;
   fs::create_directories(out, ec);

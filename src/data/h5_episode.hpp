@@ -6,6 +6,8 @@
 // float32 dataset of length T per ground-truth variable. File attributes: format_version,
 // town, suite, seed, dt, channels (array of strings), metres_per_pixel, action_names, outcome,
 // frames, plus every entry of EpisodeMeta::extra as a string attribute.
+// Strings are fixed-length ASCII (h5py returns bytes); the file format is pinned to HDF5 1.8.
+// meta.channels must name data.channels channels and meta.action_names the action_dim columns.
 // Files are byte-identical for identical input: no timestamps are stored.
 #include <string>
 
@@ -13,7 +15,8 @@
 
 namespace cd {
 
-// Writes atomically: a temporary file in the same folder, fsync, rename. Throws IoError.
+// Writes atomically: a temporary file in the same folder, fsync, rename. Throws DataError on
+// inconsistent input and IoError when the file cannot be written.
 void write_episode(const std::string& path, const EpisodeMeta& meta, const EpisodeData& data);
 
 // Reads and validates (shapes, equal first dimensions, format version). Throws DataError on

@@ -435,8 +435,11 @@ StepResult World::check_events(bool present) {
     if (r.outcome != Outcome::Collision) r.outcome = Outcome::Timeout;
     return r;
   }
-  std::string prev_lane = ego_.lane;
-  double prev_progress = ego_.progress;
+  // The light the ego was heading for before this step: refresh() moves on to the next one.
+  const std::string prev_lane = ego_.lane;
+  const double prev_progress = ego_.progress;
+  const char crossed_state = prev_link_state_;
+  const double crossed_distance = prev_link_distance_;
   refresh();
   counters_.distance += std::max(0.0, ego_.progress - prev_progress);
 
@@ -452,8 +455,8 @@ StepResult World::check_events(bool present) {
   }
   bool now_internal = !ego_.lane.empty() && ego_.lane[0] == ':';
   bool was_internal = !prev_lane.empty() && prev_lane[0] == ':';
-  if (now_internal && !was_internal && tl_code(prev_link_state_) == kTlRed &&
-      prev_link_distance_ < 10.0) {
+  if (now_internal && !was_internal && tl_code(crossed_state) == kTlRed &&
+      crossed_distance < 10.0) {
     r.ran_red_light = true;
     ++counters_.red_light_violations;
   }
@@ -716,6 +719,7 @@ bool World::junction_lane_blocked(const std::string& lane, bool minor) {
     const LaneGeom* ag = map_.find(ait->second);
     double len = ag ? ag->length : libsumo::Lane::getLength(ait->second);
     for (const std::string& v : libsumo::Lane::getLastStepVehicleIDs(ait->second)) {
+      if (v == kEgo) continue;
       // Stopped cars do not count: they wait for something else, and SUMO's drivers brake
       // for a car already inside the junction when they start.
       double dist = len - libsumo::Vehicle::getLanePosition(v);

@@ -251,7 +251,8 @@ TEST(Collect, DamagedEpisodeFileIsRecordedAgain) {
 
 TEST(Collect, PngFramesAreWritten) {
   TempDir dir("cdtest-collect");
-  const std::string config = test::write_test_config(dir, "empty");
+  // A short episode (at most 8 s): one PNG per frame.
+  const std::string config = test::write_test_config(dir, "empty", "max_episode_s = 8\n");
   const std::string out = dir / "data", png = dir / "png";
   CommandResult r = collect_cli(config, out, 1, 1, {"--png", png});
   ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();

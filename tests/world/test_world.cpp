@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -46,16 +47,26 @@ double bend_of(const LaneGeom& g) {
   return worst;
 }
 
+// Town-a's grid edges are named after their two junctions, a letter and a digit each ("B2B3");
+// border stubs have longer names ("left1A1").
+bool is_grid_edge(const std::string& e) {
+  return e.size() == 4 && std::isupper(static_cast<unsigned char>(e[0])) &&
+         std::isdigit(static_cast<unsigned char>(e[1])) &&
+         std::isupper(static_cast<unsigned char>(e[2])) &&
+         std::isdigit(static_cast<unsigned char>(e[3]));
+}
+
 // Resets `w` on the first task (seeds 0, 1, ...) whose first route lane is a straight normal
-// lane with at least `room` metres ahead of the ego's front. Fails the test when none is found.
-Task reset_with_room(World& w, double room) {
+// lane with at least `room` metres ahead of the ego's front (and, if asked, on a grid edge).
+// Fails the test when none is found.
+Task reset_with_room(World& w, double room, bool grid_edge = false) {
   for (uint64_t seed = 0; seed < 40; ++seed) {
     Task t = w.sample_task(seed, 100, 200);
     w.reset(t);
     if (w.route_lanes().empty()) continue;
     const LaneGeom* g = w.map().find(w.route_lanes().front());
     if (g && !g->internal && g->id == w.ego().lane && bend_of(*g) < 0.05 &&
-        g->length - w.ego().lane_pos >= room)
+        g->length - w.ego().lane_pos >= room && (!grid_edge || is_grid_edge(g->edge)))
       return t;
   }
   ADD_FAILURE() << "no task among seeds 0..39 starts with " << room << " m of straight lane";
@@ -431,14 +442,12 @@ TEST(WorldCollision, BrakingToAStopJustBehindIsNoCollision) {
 
 TEST(WorldCollision, OncomingVehicleOnTheOppositeLaneIsNoCollision) {
   World w(test_settings());
-  ASSERT_FALSE(reset_with_room(w, 45).route.empty());
+  ASSERT_FALSE(reset_with_room(w, 45, /*grid_edge=*/true).route.empty());
   const LaneGeom* own = w.map().find(w.route_lanes().front());
   ASSERT_NE(own, nullptr);
-  // Town-a edges are named after their junctions ("B2B3"): the reverse edge swaps the halves.
-  // Junction names have a letter and a digit; border stubs ("left1A1") never start a route
-  // lane with room, but skip cleanly if they do.
+  // The reverse of grid edge "B2B3" is "B3B2"; its car lane is the edge's highest lane index
+  // (index 0 is the sidewalk).
   const std::string& e = own->edge;
-  if (e.size() != 4) GTEST_SKIP() << "edge " << e << " is not a grid edge";
   const std::string reverse = e.substr(2) + e.substr(0, 2);
   const LaneGeom* opposite = nullptr;
   for (const LaneGeom& g : w.map().lanes)
