@@ -247,8 +247,13 @@ void BevRenderer::render(const BevScene& scene, uint8_t* out) const {
     // loop the compiler can vectorise.
     uint8_t* packed = drivable + row;
     if (inside) {
-      for (int c = 0; c < W; ++c)  // coordinates are non-negative here: truncation is floor
-        packed[c] = layers[size_t(int(by + c * gy_dc)) * gw + size_t(int(bx + c * gx_dc))];
+      // Fixed point (32 fractional bits): one add per coordinate and pixel. Coordinates are
+      // non-negative here, so the shift is floor.
+      constexpr double kOne = 4294967296.0;
+      int64_t fx = int64_t(bx * kOne), fy = int64_t(by * kOne);
+      const int64_t dx = int64_t(gx_dc * kOne), dy = int64_t(gy_dc * kOne);
+      for (int c = 0; c < W; ++c, fx += dx, fy += dy)
+        packed[c] = layers[size_t(fy >> 32) * gw + size_t(fx >> 32)];
     } else {
       for (int c = 0; c < W; ++c) {
         const double gx = bx + c * gx_dc, gy = by + c * gy_dc;

@@ -185,12 +185,28 @@ void World::build_map() {
       if (!map_.find(c.approachedLane)) continue;
       Link l{c.approachedLane, c.approachedInternal, c.direction.empty() ? 's' : c.direction[0]};
       out.push_back(l);
-      if (!g.internal && !c.approachedInternal.empty())
-        approach_of_via_[c.approachedInternal] = g.id;
+      if (!g.internal && !c.approachedInternal.empty()) {
+        ViaInfo& vi = via_info_[c.approachedInternal];
+        vi.approach = g.id;
+        vi.direction = l.direction;
+        vi.fixed_state = c.state.empty() ? 'O' : c.state[0];
+      }
     }
   }
+  // Signalised links read their state from their light's state string at run time.
+  for (const std::string& tls : libsumo::TrafficLight::getIDList()) {
+    auto controlled = libsumo::TrafficLight::getControlledLinks(tls);
+    for (size_t i = 0; i < controlled.size(); ++i)
+      for (const auto& link : controlled[i]) {
+        auto it = via_info_.find(link.viaLane);
+        if (it != via_info_.end()) {
+          it->second.tls = tls;
+          it->second.tls_index = static_cast<int>(i);
+        }
+      }
+  }
   // Every internal lane knows the first internal lane (the via) of its connection.
-  for (const auto& [via, approach] : approach_of_via_) {
+  for (const auto& [via, info] : via_info_) {
     std::string lane = via;
     for (int guard = 0; guard < 16 && !lane.empty() && lane[0] == ':'; ++guard) {
       via_head_[lane] = via;
@@ -245,7 +261,7 @@ void World::reset(const Task& task) {
   traffic_rng_ = std::make_unique<Rng>(derive_seed(task.traffic_seed, 1));
   next_actor_id_ = 0;
   scripted_ = 0;
-  type_size_.clear();
+  vehicle_size_.clear();
   counters_ = {};
   outcome_ = Outcome::Running;
   prev_link_state_ = 0;
@@ -349,6 +365,7 @@ void World::insert_ego() {
         libsumo::Vehicle::setSpeed(kEgo, 0);
         ego_entry_time_ = libsumo::Simulation::getTime();
         ego_present_ = true;
+        vehicle_ids_ = libsumo::Vehicle::getIDList();
         return;
       }
       clear_start();
@@ -395,7 +412,8 @@ StepResult World::step(const Control& c) {
   sumo_call("simulation step failed", [&] {
     libsumo::Vehicle::setSpeed(kEgo, v1);
     advance();
-    present = contains(libsumo::Vehicle::getIDList(), kEgo);
+    vehicle_ids_ = libsumo::Vehicle::getIDList();
+    present = contains(vehicle_ids_, kEgo);
   });
   StepResult r;
   sumo_call("reading the simulation failed", [&] { r = check_events(present); });
@@ -487,16 +505,17 @@ void World::refresh() {
 
   actors_.clear();
   const double r2 = settings_.world.view_radius * settings_.world.view_radius;
-  for (const std::string& id : libsumo::Vehicle::getIDList()) {
+  for (const std::string& id : vehicle_ids_) {
     if (id == kEgo) continue;
     Vec2 p = to_vec(libsumo::Vehicle::getPosition(id));
     Vec2 d = p - front;
     if (d.dot(d) > r2) continue;
-    std::string type = libsumo::Vehicle::getTypeID(id);
-    auto it = type_size_.find(type);
-    if (it == type_size_.end())
-      it = type_size_.emplace(type, std::make_pair(libsumo::VehicleType::getLength(type),
-                                                   libsumo::VehicleType::getWidth(type))).first;
+    auto it = vehicle_size_.find(id);
+    if (it == vehicle_size_.end()) {
+      std::string type = libsumo::Vehicle::getTypeID(id);
+      it = vehicle_size_.emplace(id, std::make_pair(libsumo::VehicleType::getLength(type),
+                                                    libsumo::VehicleType::getWidth(type))).first;
+    }
     Actor a;
     a.id = id;
     a.box = box_from_front(p, libsumo::Vehicle::getAngle(id), it->second.first, it->second.second);
@@ -550,9 +569,19 @@ void World::compute_path() {
     }
     lane = next;
   }
+  path_min_ = {1e300, 1e300};
+  path_max_ = {-1e300, -1e300};
+  for (const PathLane& pl : path_)
+    for (const Vec2& q : pl.lane->shape) {
+      path_min_ = {std::min(path_min_.x, q.x), std::min(path_min_.y, q.y)};
+      path_max_ = {std::max(path_max_.x, q.x), std::max(path_max_.y, q.y)};
+    }
 }
 
 bool World::on_path(Vec2 p, double half_width, double* s_out) const {
+  if (p.x < path_min_.x - half_width || p.x > path_max_.x + half_width ||
+      p.y < path_min_.y - half_width || p.y > path_max_.y + half_width)
+    return false;
   double best = 1e300;
   for (const PathLane& pl : path_) {
     const Polyline& shape = pl.lane->shape;
@@ -584,9 +613,14 @@ void World::compute_truth() {
   const double half_body = settings_.ego.width / 2;
 
   for (const Actor& a : actors_) {
-    auto corners = box_corners(a.box);
     double s_min = 1e300;
     double hw = half_body + (a.pedestrian ? xs.ped_margin : xs.vehicle_margin);
+    // Nothing of this actor can be near the path: skip the per-segment tests.
+    const double reach = hw + (a.box.length + a.box.width) / 2 + a.speed * xs.ped_lookahead_s;
+    if (a.box.center.x < path_min_.x - reach || a.box.center.x > path_max_.x + reach ||
+        a.box.center.y < path_min_.y - reach || a.box.center.y > path_max_.y + reach)
+      continue;
+    auto corners = box_corners(a.box);
     auto test = [&](Vec2 p) {
       double s;
       if (on_path(p, hw, &s)) s_min = std::min(s_min, s);
@@ -613,15 +647,19 @@ void World::compute_truth() {
     }
   }
 
-  auto tls = libsumo::Vehicle::getNextTLS(kEgo);
-  if (!tls.empty() && tls.front().dist < kPathHorizon) {
-    gt.tl_state = tl_code(tls.front().state);
-    gt.tl_distance = tls.front().dist;
-    prev_link_state_ = tls.front().state;
-    prev_link_distance_ = tls.front().dist;
-  } else {
-    prev_link_state_ = 0;
-    prev_link_distance_ = 1e9;
+  // The first signalised link on the path ahead.
+  prev_link_state_ = 0;
+  prev_link_distance_ = 1e9;
+  for (const PathLane& pl : path_) {
+    if (pl.s_begin <= 0 || !pl.lane->internal) continue;
+    const ViaInfo* vi = via_info(pl.lane->id);
+    if (!vi || vi->tls.empty()) continue;
+    char state = link_state(*vi);
+    gt.tl_state = tl_code(state);
+    gt.tl_distance = pl.s_begin;
+    prev_link_state_ = state;
+    prev_link_distance_ = pl.s_begin;
+    break;
   }
 
   // The next junction on the path (or the one the ego is in): its internal lanes, the
@@ -642,16 +680,9 @@ void World::compute_truth() {
         j1 < path_.size() ? path_[j1].s_begin
                           : path_[j1 - 1].s_begin + path_[j1 - 1].lane->length - path_[j1 - 1].from_pos;
     const bool inside = j0 == 0;
-    const std::string& head = via_head(path_[j0].lane->id);
-    auto ait = approach_of_via_.find(head);
-    char dir = 's', state = 'O';
-    if (ait != approach_of_via_.end()) {
-      for (const auto& c : libsumo::Lane::getLinks(ait->second))
-        if (c.approachedInternal == head) {
-          dir = c.direction.empty() ? 's' : c.direction[0];
-          state = c.state.empty() ? 'O' : c.state[0];
-        }
-    }
+    const ViaInfo* vi = via_info(via_head(path_[j0].lane->id));
+    const char dir = vi ? vi->direction : 's';
+    const char state = vi ? link_state(*vi) : 'O';
     if (inside || gt.junction_distance <= settings_.world.command_horizon) command_ = command_of(dir);
     // The ego decides at the junction's entry for all of its internal lanes; once inside it
     // is committed (waiting in the middle would leave it standing in other cars' paths).
@@ -672,6 +703,24 @@ void World::compute_truth() {
                  !(gt.ped_on_path && gt.ped_distance < d) &&
                  !(gt.must_yield && gt.yield_distance < d);
   truth_ = gt;
+}
+
+const World::ViaInfo* World::via_info(const std::string& via) const {
+  auto it = via_info_.find(via);
+  return it == via_info_.end() ? nullptr : &it->second;
+}
+
+char World::link_state(const ViaInfo& vi) {
+  if (vi.tls.empty()) return vi.fixed_state;
+  if (tls_cache_step_ != steps_since_load_) {
+    tls_states_.clear();
+    tls_cache_step_ = steps_since_load_;
+  }
+  auto it = tls_states_.find(vi.tls);
+  if (it == tls_states_.end())
+    it = tls_states_.emplace(vi.tls, libsumo::TrafficLight::getRedYellowGreenState(vi.tls)).first;
+  const std::string& st = it->second;
+  return vi.tls_index >= 0 && vi.tls_index < static_cast<int>(st.size()) ? st[vi.tls_index] : 'O';
 }
 
 const std::string& World::via_head(const std::string& internal_lane) const {
@@ -709,20 +758,17 @@ bool World::junction_lane_blocked(const std::string& lane, bool minor) {
     }
     if (!minor) continue;
     // Priority traffic about to enter the foe lane.
-    const std::string& head = via_head(foe);
-    auto ait = approach_of_via_.find(head);
-    if (ait == approach_of_via_.end()) continue;
-    char foe_state = 'O';
-    for (const auto& c : libsumo::Lane::getLinks(ait->second))
-      if (c.approachedInternal == head) foe_state = c.state.empty() ? 'O' : c.state[0];
+    const ViaInfo* fvi = via_info(via_head(foe));
+    if (!fvi) continue;
+    const char foe_state = link_state(*fvi);
     if (!is_upper(foe_state) || foe_state == 'O') continue;
-    const LaneGeom* ag = map_.find(ait->second);
-    double len = ag ? ag->length : libsumo::Lane::getLength(ait->second);
-    for (const std::string& v : libsumo::Lane::getLastStepVehicleIDs(ait->second)) {
+    const LaneGeom* ag = map_.find(fvi->approach);
+    if (!ag) continue;
+    for (const std::string& v : libsumo::Lane::getLastStepVehicleIDs(fvi->approach)) {
       if (v == kEgo) continue;
       // Stopped cars do not count: they wait for something else, and SUMO's drivers brake
       // for a car already inside the junction when they start.
-      double dist = len - libsumo::Vehicle::getLanePosition(v);
+      double dist = ag->length - libsumo::Vehicle::getLanePosition(v);
       double sp = libsumo::Vehicle::getSpeed(v);
       if (sp > 0.5 && dist / sp < xs.yield_time) return true;
     }

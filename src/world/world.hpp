@@ -131,6 +131,14 @@ class World {
     std::string to_lane, via_lane;
     char direction = 's';
   };
+  // A connection through a junction, keyed by its first internal lane (the via).
+  struct ViaInfo {
+    std::string approach;   // the normal lane it leaves from
+    char direction = 's';   // SUMO's s, l, r, ...
+    char fixed_state = 'O'; // state of an unsignalised link (M, m, =, ...)
+    std::string tls;        // the light controlling it, if any
+    int tls_index = -1;     // its index in that light's state string
+  };
   struct PathLane {
     const LaneGeom* lane = nullptr;
     double from_pos = 0;  // lane position where the ego's path enters this lane
@@ -149,6 +157,8 @@ class World {
   void compute_truth();
   bool on_path(Vec2 p, double half_width, double* s) const;
   const std::string& via_head(const std::string& internal_lane) const;
+  const ViaInfo* via_info(const std::string& via) const;
+  char link_state(const ViaInfo& vi);  // current state of the link (light or fixed)
   const std::vector<std::string>& internal_foes(const std::string& lane);
   // Must a car about to use this internal lane wait (pedestrians on or heading for a foe
   // crossing, cars in the conflict area, priority cars arriving when the ego's link is minor)?
@@ -162,7 +172,9 @@ class World {
   RoadMap map_;
   std::unique_ptr<BevRenderer> renderer_;
   std::unordered_map<std::string, std::vector<Link>> links_;       // lane -> outgoing links
-  std::unordered_map<std::string, std::string> approach_of_via_;   // via lane -> approach lane
+  std::unordered_map<std::string, ViaInfo> via_info_;
+  std::unordered_map<std::string, std::string> tls_states_;  // this step's light states
+  long tls_cache_step_ = -1;
   std::unordered_map<std::string, std::string> via_head_;          // internal lane -> its via
   std::unordered_map<std::string, std::vector<std::string>> foes_; // internal lane -> foe lanes
   std::unordered_map<std::string, const LaneGeom*> edge_lane_;  // car edge -> rightmost car lane
@@ -183,7 +195,9 @@ class World {
   std::vector<Actor> actors_;
   std::vector<PathLane> path_;
   std::vector<std::string> route_lanes_;
-  std::unordered_map<std::string, std::pair<double, double>> type_size_;  // vtype -> (l, w)
+  std::unordered_map<std::string, std::pair<double, double>> vehicle_size_;  // id -> (l, w)
+  std::vector<std::string> vehicle_ids_;  // vehicles in the simulation after the last step
+  Vec2 path_min_, path_max_;              // bounding box of the path's lanes
   char prev_link_state_ = 0;
   double prev_link_distance_ = 1e9;
   bool ego_present_ = false;
