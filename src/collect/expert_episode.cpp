@@ -53,9 +53,9 @@ void ExpertRecorder::begin(EpisodeData& d) const {
 }
 
 Control ExpertRecorder::record_step(EpisodeData& d) const {
-  size_t at = d.bev.size();
-  d.bev.resize(at + d.frame_bytes());
-  world_.render(d.bev.data() + at);
+  size_t at = d.bev_packed.size();
+  d.bev_packed.resize(at + d.frame_pixels());
+  world_.render_packed(d.bev_packed.data() + at);
   const EgoState& ego = world_.ego();
   d.speed.push_back(static_cast<float>(ego.speed));
   d.command.push_back(world_.command());
@@ -79,7 +79,7 @@ EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, Epi
   begin(d);
   const BevRenderer& bev = world_.renderer();
   const long expected = static_cast<long>(task.timeout_s / settings_.world.dt) + 1;
-  d.bev.reserve(bev.frame_bytes() * static_cast<size_t>(expected));
+  d.bev_packed.reserve(d.frame_pixels() * static_cast<size_t>(expected));
 
   const NoiseSettings& ns = cs.noise;
   Rng noise_rng(derive_seed(seed, 2));
@@ -92,9 +92,10 @@ EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, Epi
     Control label = record_step(d);
     if (!png_dir.empty()) {
       char name[64];
-      std::snprintf(name, sizeof name, "/frame_%05zu.png", d.speed.size() - 1);
-      write_bev_png(png_dir + name, d.bev.data() + (d.frames() - 1) * d.frame_bytes(),
-                    d.channels, d.height, d.width);
+      std::snprintf(name, sizeof name, "/frame_%05zu.png", d.frames() - 1);
+      std::vector<uint8_t> planes(d.frame_bytes());
+      d.frame_planes(d.frames() - 1, planes.data());
+      write_bev_png(png_dir + name, planes.data(), d.channels, d.height, d.width);
     }
 
     Control executed = label;

@@ -5,6 +5,9 @@
 #include <string>
 #include <vector>
 
+#include "core/bitplanes.hpp"
+#include "core/frame_buffer.hpp"
+
 namespace cd {
 
 inline constexpr int kEpisodeFormatVersion = 1;
@@ -26,7 +29,10 @@ struct EpisodeMeta {
 struct EpisodeData {
   int channels = 0, height = 0, width = 0;  // BEV frame shape C x H x W
   int action_dim = 0;
-  std::vector<uint8_t> bev;      // T*C*H*W, row-major
+  FrameBytes bev;                // T*C*H*W, row-major, 0 or 255
+  // Recorders may fill this instead of bev: T*H*W bytes, bit c of a byte = channel c
+  // (see core/bitplanes.hpp). Exactly one of bev and bev_packed holds the frames.
+  FrameBytes bev_packed;
   std::vector<float> speed;      // T, m/s
   std::vector<float> action;     // T*action_dim, the expert's action (the label)
   std::vector<int32_t> command;  // T
@@ -36,6 +42,9 @@ struct EpisodeData {
 
   size_t frames() const { return speed.size(); }
   size_t frame_bytes() const { return static_cast<size_t>(channels) * height * width; }
+  size_t frame_pixels() const { return static_cast<size_t>(height) * width; }
+  // Frame t as C planes, whichever representation holds it; out has frame_bytes() bytes.
+  void frame_planes(size_t t, uint8_t* out) const;
 };
 
 }  // namespace cd

@@ -187,6 +187,32 @@ void write_dataset(hid_t loc, const std::string& name, hid_t file_type, hid_t me
   }
 }
 
+// The bev dataset from packed frames, expanded one frame (one chunk) at a time.
+void write_packed_bev(hid_t loc, const EpisodeData& data) {
+  const hsize_t t = data.frames(), c = static_cast<hsize_t>(data.channels);
+  const hsize_t h = static_cast<hsize_t>(data.height), w = static_cast<hsize_t>(data.width);
+  H5Id dcpl = untimed_plist(H5P_DATASET_CREATE);
+  const hsize_t chunk[4] = {1, c, h, w};
+  check(H5Pset_chunk(dcpl.get(), 4, chunk), "cannot set chunking of 'bev'");
+  check(H5Pset_deflate(dcpl.get(), 4), "cannot set compression of 'bev'");
+  H5Id space = dataspace({t, c, h, w});
+  H5Id dset(check_id(H5Dcreate2(loc, "bev", H5T_STD_U8LE, space.get(), H5P_DEFAULT, dcpl.get(),
+                                H5P_DEFAULT),
+                     "cannot create dataset 'bev'"),
+            H5Dclose);
+  H5Id mem = dataspace({1, c, h, w});
+  std::vector<uint8_t> planes(data.frame_bytes());
+  for (hsize_t i = 0; i < t; ++i) {
+    data.frame_planes(i, planes.data());
+    const hsize_t start[4] = {i, 0, 0, 0};
+    check(H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start, nullptr, chunk, nullptr),
+          "cannot select frame of 'bev'");
+    check(H5Dwrite(dset.get(), H5T_NATIVE_UINT8, mem.get(), space.get(), H5P_DEFAULT,
+                   planes.data()),
+          "cannot write dataset 'bev'");
+  }
+}
+
 void validate(const EpisodeMeta& meta, const EpisodeData& data) {
   auto bad = [](const std::string& what) { throw DataError("invalid episode: " + what); };
   const size_t frames = data.frames();
@@ -202,7 +228,14 @@ void validate(const EpisodeMeta& meta, const EpisodeData& data) {
           std::to_string(want) + " for " + std::to_string(frames) + " frames");
     }
   };
-  expect("bev", data.bev.size(), frames * data.frame_bytes());
+  if (data.bev_packed.empty()) {
+    expect("bev", data.bev.size(), frames * data.frame_bytes());
+  } else {
+    if (!data.bev.empty()) bad("both bev and bev_packed hold frames");
+    if (data.channels > kMaxPackedChannels)
+      bad("bev_packed holds at most " + std::to_string(kMaxPackedChannels) + " channels");
+    expect("bev_packed", data.bev_packed.size(), frames * data.frame_pixels());
+  }
   expect("action", data.action.size(), frames * static_cast<size_t>(data.action_dim));
   expect("command", data.command.size(), frames);
   expect("pose", data.pose.size(), frames * 3);
@@ -253,8 +286,12 @@ void write_file(const std::string& file_path, const EpisodeMeta& meta, const Epi
   const hsize_t c = data.channels, h = data.height, w = data.width;
   const hsize_t a = data.action_dim;
   // One frame per chunk: training reads random frames, each then costs one decompression.
-  write_dataset(root, "bev", H5T_STD_U8LE, H5T_NATIVE_UINT8, {t, c, h, w}, {1, c, h, w},
-                data.bev.data());
+  if (data.bev_packed.empty()) {
+    write_dataset(root, "bev", H5T_STD_U8LE, H5T_NATIVE_UINT8, {t, c, h, w}, {1, c, h, w},
+                  data.bev.data());
+  } else {
+    write_packed_bev(root, data);
+  }
   write_dataset(root, "speed", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, {t}, {}, data.speed.data());
   write_dataset(root, "action", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, {t, a}, {}, data.action.data());
   write_dataset(root, "command", H5T_STD_I32LE, H5T_NATIVE_INT32, {t}, {}, data.command.data());
@@ -496,7 +533,7 @@ EpisodeData read_data(hid_t root, const EpisodeMeta& meta) {
   data.height = dim_as_int(bev.dims[2], "bev");
   data.width = dim_as_int(bev.dims[3], "bev");
   data.action_dim = dim_as_int(action.dims[1], "action");
-  data.bev = std::move(bev.values);
+  data.bev.assign(bev.values.begin(), bev.values.end());
   data.speed = std::move(speed.values);
   data.action = std::move(action.values);
   data.command = std::move(command.values);

@@ -8,6 +8,7 @@
 #include <fstream>
 
 #include "core/atomic_file.hpp"
+#include "core/bitplanes.hpp"
 #include "core/error.hpp"
 
 #define STB_IMAGE_WRITE_IMPLEMENTATION
@@ -73,11 +74,11 @@ Polyline offset_polyline(const Polyline& pts, double offset) {
   return out;
 }
 
-// Sets to 255 the pixels of the H x W image whose centres lie in the rectangle centred at
-// (rc, cc) with unit axis (ur, uc) and half-extents hl along it and hw across it, all in
-// pixel units.
-void fill_rect(uint8_t* img, int H, int W, double rc, double cc, double ur, double uc,
-               double hl, double hw) {
+// Sets `bit` in the pixels of the packed H x W image whose centres lie in the rectangle
+// centred at (rc, cc) with unit axis (ur, uc) and half-extents hl along it and hw across it,
+// all in pixel units.
+void fill_rect(uint8_t* img, int H, int W, uint8_t bit, double rc, double cc, double ur,
+               double uc, double hl, double hw) {
   const double er = hl * std::abs(ur) + hw * std::abs(uc);
   const double ec = hl * std::abs(uc) + hw * std::abs(ur);
   // Clip in floating point first: far-away boxes must not overflow the int conversion.
@@ -91,7 +92,7 @@ void fill_rect(uint8_t* img, int H, int W, double rc, double cc, double ur, doub
     for (int c = int(c0); c <= int(c1); ++c) {
       const double dc = c + 0.5 - cc;
       if (std::abs(dr * ur + dc * uc) <= hl && std::abs(dc * ur - dr * uc) <= hw)
-        img[size_t(r) * W + c] = 255;
+        img[size_t(r) * W + c] |= bit;
     }
   }
 }
@@ -211,8 +212,17 @@ void BevRenderer::set_route(const std::vector<std::string>& lane_ids) {
 }
 
 void BevRenderer::render(const BevScene& scene, uint8_t* out) const {
+  thread_local std::vector<uint8_t> packed;
+  packed.resize(size_t(cfg_.height) * cfg_.width);
+  render_packed(scene, packed.data());
+  unpack_planes(packed.data(), packed.size(), kBevChannelCount, out);
+}
+
+void BevRenderer::render_packed(const BevScene& scene, uint8_t* out) const {
+  static_assert(kBevChannelCount <= kMaxPackedChannels);
+  static_assert(kDrivableBit == 1 << kBevDrivable && kMarkingsBit == 1 << kBevMarkings &&
+                kRouteBit == 1 << kBevRoute);
   const int H = cfg_.height, W = cfg_.width;
-  const size_t plane = size_t(H) * W;
   const double mpp = cfg_.metres_per_pixel;
   const double row_e = H * cfg_.ego_row_fraction, col_e = W / 2.0;
   const double ch = std::cos(scene.ego.heading), sh = std::sin(scene.ego.heading);
@@ -235,17 +245,13 @@ void BevRenderer::render(const BevScene& scene, uint8_t* out) const {
       inside = inside && gx >= 0.5 && gx < gw_ - 0.5 && gy >= 0.5 && gy < gh_ - 0.5;
     }
 
-  uint8_t* drivable = out + kBevDrivable * plane;
-  uint8_t* markings = out + kBevMarkings * plane;
-  uint8_t* route = out + kBevRoute * plane;
   const uint8_t* layers = layers_.data();
   const size_t gw = size_t(gw_);
   for (int r = 0; r < H; ++r) {
     const double bx = gx00 + r * gx_dr, by = gy00 + r * gy_dr;
     const size_t row = size_t(r) * W;
-    // Gather the packed bits into the drivable row first, then unpack them in a separate
-    // loop the compiler can vectorise.
-    uint8_t* packed = drivable + row;
+    // The static layers are stored with the same bits as the output: one read per pixel.
+    uint8_t* packed = out + row;
     if (inside) {
       // Fixed point (32 fractional bits): one add per coordinate and pixel. Coordinates are
       // non-negative here, so the shift is floor.
@@ -261,27 +267,20 @@ void BevRenderer::render(const BevScene& scene, uint8_t* out) const {
         packed[c] = in ? layers[size_t(gy) * gw + size_t(gx)] : 0;
       }
     }
-    for (int c = 0; c < W; ++c) {
-      const uint8_t v = packed[c];
-      drivable[row + c] = (v & kDrivableBit) ? 255 : 0;
-      markings[row + c] = (v & kMarkingsBit) ? 255 : 0;
-      route[row + c] = (v & kRouteBit) ? 255 : 0;
-    }
   }
 
   // Dynamic content, straight in image space. A network-frame vector w moves a point by
   // (-w.fwd, -w.left) / mpp pixels in (row, col).
-  std::memset(out + kBevVehicles * plane, 0, (kBevChannelCount - kBevVehicles) * plane);
-  auto draw_box = [&](const Box& box, uint8_t* img, double min_half_px) {
+  auto draw_box = [&](const Box& box, BevChannel ch, double min_half_px) {
     const Vec2 d = box.center - e;
     const Vec2 u{std::cos(box.heading), std::sin(box.heading)};
-    fill_rect(img, H, W, row_e - d.dot(fwd) / mpp, col_e - d.dot(left) / mpp, -u.dot(fwd),
-              -u.dot(left), std::max(box.length / 2 / mpp, min_half_px),
+    fill_rect(out, H, W, uint8_t(1 << ch), row_e - d.dot(fwd) / mpp, col_e - d.dot(left) / mpp,
+              -u.dot(fwd), -u.dot(left), std::max(box.length / 2 / mpp, min_half_px),
               std::max(box.width / 2 / mpp, min_half_px));
   };
-  for (const Box& v : scene.vehicles) draw_box(v, out + kBevVehicles * plane, 0.0);
+  for (const Box& v : scene.vehicles) draw_box(v, kBevVehicles, 0.0);
   // At least 2 x 2 pixels: a pedestrian is narrower than a pixel at the default scale.
-  for (const Box& p : scene.pedestrians) draw_box(p, out + kBevPedestrians * plane, 1.0);
+  for (const Box& p : scene.pedestrians) draw_box(p, kBevPedestrians, 1.0);
 
   for (const BevScene::StopLine& s : scene.stop_lines) {
     if (s.channel != kBevLightRed && s.channel != kBevLightGreen && s.channel != kBevLightYield)
@@ -291,8 +290,9 @@ void BevRenderer::render(const BevScene& scene, uint8_t* out) const {
     const double len = ab.norm();
     const Vec2 u = len > 0 ? ab * (1.0 / len) : Vec2{1, 0};
     const Vec2 d = (s.a + s.b) * 0.5 - e;
-    fill_rect(out + s.channel * plane, H, W, row_e - d.dot(fwd) / mpp, col_e - d.dot(left) / mpp,
-              -u.dot(fwd), -u.dot(left), len / 2 / mpp, std::max(0.5 / mpp, 1.0));
+    fill_rect(out, H, W, uint8_t(1 << s.channel), row_e - d.dot(fwd) / mpp,
+              col_e - d.dot(left) / mpp, -u.dot(fwd), -u.dot(left), len / 2 / mpp,
+              std::max(0.5 / mpp, 1.0));
   }
 }
 

@@ -65,8 +65,11 @@ class BevRenderer {
   // lane width. Called once per episode.
   void set_route(const std::vector<std::string>& lane_ids);
 
-  // Writes C*H*W bytes to out.
+  // Writes C*H*W bytes (planes of 0/255) to out.
   void render(const BevScene& scene, uint8_t* out) const;
+  // Writes H*W bytes to out, bit c of each byte = channel c (core/bitplanes.hpp): the same
+  // frame 8x smaller, what recorders keep.
+  void render_packed(const BevScene& scene, uint8_t* out) const;
 
   const BevConfig& config() const { return cfg_; }
   size_t frame_bytes() const { return size_t(kBevChannelCount) * cfg_.height * cfg_.width; }

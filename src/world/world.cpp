@@ -156,6 +156,10 @@ void World::build_map() {
       continue;  // rail, bike-only and similar lanes are not part of this world
     }
     if (g.shape.size() < 2) continue;
+    for (const Vec2& q : g.shape) {
+      g.min = {std::min(g.min.x, q.x), std::min(g.min.y, q.y)};
+      g.max = {std::max(g.max.x, q.x), std::max(g.max.y, q.y)};
+    }
     map_.add(std::move(g));
     const LaneGeom& added = map_.lanes.back();
     if (added.kind == LaneKind::Driving && !added.internal)
@@ -261,7 +265,6 @@ void World::reset(const Task& task) {
   traffic_rng_ = std::make_unique<Rng>(derive_seed(task.traffic_seed, 1));
   next_actor_id_ = 0;
   scripted_ = 0;
-  vehicle_size_.clear();
   counters_ = {};
   outcome_ = Outcome::Running;
   prev_link_state_ = 0;
@@ -363,9 +366,17 @@ void World::insert_ego() {
         libsumo::Vehicle::setSpeedMode(kEgo, 0);
         libsumo::Vehicle::setLaneChangeMode(kEgo, 0);
         libsumo::Vehicle::setSpeed(kEgo, 0);
+        const double r = settings_.world.view_radius;
+        libsumo::Vehicle::subscribeContext(
+            kEgo, libsumo::CMD_GET_VEHICLE_VARIABLE, r,
+            {libsumo::VAR_POSITION, libsumo::VAR_ANGLE, libsumo::VAR_SPEED, libsumo::VAR_LENGTH,
+             libsumo::VAR_WIDTH});
+        libsumo::Vehicle::subscribeContext(
+            kEgo, libsumo::CMD_GET_PERSON_VARIABLE, r,
+            {libsumo::VAR_POSITION, libsumo::VAR_ANGLE, libsumo::VAR_SPEED});
+        advance();  // subscription results exist after a step
         ego_entry_time_ = libsumo::Simulation::getTime();
         ego_present_ = true;
-        vehicle_ids_ = libsumo::Vehicle::getIDList();
         return;
       }
       clear_start();
@@ -412,8 +423,7 @@ StepResult World::step(const Control& c) {
   sumo_call("simulation step failed", [&] {
     libsumo::Vehicle::setSpeed(kEgo, v1);
     advance();
-    vehicle_ids_ = libsumo::Vehicle::getIDList();
-    present = contains(vehicle_ids_, kEgo);
+    present = contains(libsumo::Vehicle::getIDList(), kEgo);
   });
   StepResult r;
   sumo_call("reading the simulation failed", [&] { r = check_events(present); });
@@ -503,35 +513,31 @@ void World::refresh() {
   ego_.progress = libsumo::Vehicle::getDistance(kEgo);
   ego_.time = t - ego_entry_time_;
 
+  // Nearby road users come from a context subscription around the ego: SUMO finds them
+  // through its spatial index, where asking for every actor by id would cost far more.
   actors_.clear();
   const double r2 = settings_.world.view_radius * settings_.world.view_radius;
-  for (const std::string& id : vehicle_ids_) {
+  for (const auto& [id, vars] : libsumo::Vehicle::getContextSubscriptionResults(kEgo)) {
     if (id == kEgo) continue;
-    Vec2 p = to_vec(libsumo::Vehicle::getPosition(id));
-    Vec2 d = p - front;
-    if (d.dot(d) > r2) continue;
-    auto it = vehicle_size_.find(id);
-    if (it == vehicle_size_.end()) {
-      std::string type = libsumo::Vehicle::getTypeID(id);
-      it = vehicle_size_.emplace(id, std::make_pair(libsumo::VehicleType::getLength(type),
-                                                    libsumo::VehicleType::getWidth(type))).first;
-    }
-    Actor a;
-    a.id = id;
-    a.box = box_from_front(p, libsumo::Vehicle::getAngle(id), it->second.first, it->second.second);
-    a.speed = libsumo::Vehicle::getSpeed(id);
-    actors_.push_back(std::move(a));
-  }
-  for (const std::string& id : libsumo::Person::getIDList()) {
-    Vec2 p = to_vec(libsumo::Person::getPosition(id));
+    auto number = [&](int var) {
+      auto it = vars.find(var);
+      return it == vars.end() ? 0.0 : static_cast<const libsumo::TraCIDouble&>(*it->second).value;
+    };
+    auto pit = vars.find(libsumo::VAR_POSITION);
+    if (pit == vars.end()) continue;
+    const auto& pos = static_cast<const libsumo::TraCIPosition&>(*pit->second);
+    Vec2 p{pos.x, pos.y};
     Vec2 d = p - front;
     if (d.dot(d) > r2) continue;
     Actor a;
     a.id = id;
-    a.pedestrian = true;
-    // A person's position is its front; its square is centred half a size behind.
-    a.box = box_from_front(p, libsumo::Person::getAngle(id), kPedSize, kPedSize);
-    a.speed = libsumo::Person::getSpeed(id);
+    a.pedestrian = vars.find(libsumo::VAR_LENGTH) == vars.end();  // only cars report sizes
+    // A position is the front of a car or person; persons are squares of kPedSize.
+    a.box = a.pedestrian
+                ? box_from_front(p, number(libsumo::VAR_ANGLE), kPedSize, kPedSize)
+                : box_from_front(p, number(libsumo::VAR_ANGLE), number(libsumo::VAR_LENGTH),
+                                 number(libsumo::VAR_WIDTH));
+    a.speed = number(libsumo::VAR_SPEED);
     actors_.push_back(std::move(a));
   }
   compute_path();
@@ -812,6 +818,8 @@ BevScene World::scene() const {
 }
 
 void World::render(uint8_t* out) const { renderer_->render(scene(), out); }
+
+void World::render_packed(uint8_t* out) const { renderer_->render_packed(scene(), out); }
 
 std::string World::add_scripted_vehicle(const std::string& lane_id, double pos, double speed) {
   const LaneGeom* g = map_.find(lane_id);

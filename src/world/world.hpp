@@ -103,7 +103,8 @@ class World {
   void hand_ego_to_sumo();
   void step_bare();
 
-  void render(uint8_t* out) const;  // the BEV of the current state, C*H*W bytes
+  void render(uint8_t* out) const;         // the BEV of the current state, C*H*W bytes
+  void render_packed(uint8_t* out) const;  // the same as H*W bytes of channel bits
   BevScene scene() const;
 
   const EgoState& ego() const { return ego_; }
@@ -195,8 +196,6 @@ class World {
   std::vector<Actor> actors_;
   std::vector<PathLane> path_;
   std::vector<std::string> route_lanes_;
-  std::unordered_map<std::string, std::pair<double, double>> vehicle_size_;  // id -> (l, w)
-  std::vector<std::string> vehicle_ids_;  // vehicles in the simulation after the last step
   Vec2 path_min_, path_max_;              // bounding box of the path's lanes
   char prev_link_state_ = 0;
   double prev_link_distance_ = 1e9;
