@@ -116,8 +116,11 @@ std::vector<std::string> World::sumo_args(uint64_t seed) const {
           "--collision.mingap-factor", "0",
           "--collision.check-junctions", "true",
           "--ignore-route-errors", "true",
-          "--time-to-teleport", "300",
-          "--pedestrian.model", "striping"};
+          "--pedestrian.model", "striping",
+          // SUMO's drivers gridlock now and then at busy junctions; moving cars that stood 90 s
+          // keeps the town flowing (an ego standing that long at the front of a lane may be
+          // moved too, which ends its episode as a timeout).
+          "--time-to-teleport", "90"};
 }
 
 void World::build_map() {
