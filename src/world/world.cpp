@@ -174,6 +174,7 @@ void World::build_map() {
     for (int i : idx)
       if (map_.lanes[i].index < map_.lanes[best].index) best = i;
     edge_lane_[edge] = &map_.lanes[best];
+    for (int i : idx) edge_lanes_[edge].push_back(map_.lanes[i].id);
   }
   if (car_edges.empty()) throw SimError(net_path_ + ": the network has no lane for cars");
   for (auto& [edge, idx] : driving_by_edge) {
@@ -227,6 +228,43 @@ void World::build_map() {
   ped_edges_.assign(ped_edges.begin(), ped_edges.end());
 }
 
+std::string World::next_lane(const std::string& lane, const std::string& to_edge,
+                             const std::unordered_set<std::string>* good) const {
+  auto it = links_.find(lane);
+  if (it == links_.end()) return "";
+  std::string fallback;
+  for (const Link& l : it->second) {
+    const LaneGeom* to = map_.find(l.to_lane);
+    if (!to || to->edge != to_edge) continue;
+    std::string next = l.via_lane.empty() ? l.to_lane : l.via_lane;
+    if (!good || good->count(l.to_lane)) return next;
+    if (fallback.empty()) fallback = next;
+  }
+  return fallback;
+}
+
+std::vector<std::unordered_set<std::string>> World::lane_plan(
+    const std::vector<std::string>& route) const {
+  // good[k]: lanes of route edge k from which the rest of the route is drivable without a
+  // lane change (the ego never changes lanes), computed from the goal backwards.
+  std::vector<std::unordered_set<std::string>> good(route.size());
+  for (size_t k = route.size(); k-- > 0;) {
+    auto it = edge_lanes_.find(route[k]);
+    if (it == edge_lanes_.end()) break;
+    for (const std::string& lane : it->second) {
+      if (k + 1 == route.size()) {
+        good[k].insert(lane);
+        continue;
+      }
+      auto lit = links_.find(lane);
+      if (lit == links_.end()) continue;
+      for (const Link& l : lit->second)
+        if (good[k + 1].count(l.to_lane)) good[k].insert(lane);
+    }
+  }
+  return good;
+}
+
 Task World::sample_task(uint64_t seed, double min_len, double max_len) {
   Rng rng(seed);
   Task best;
@@ -238,8 +276,19 @@ Task World::sample_task(uint64_t seed, double min_len, double max_len) {
     libsumo::TraCIStage r = libsumo::Simulation::findRoute(from, to);
     if (r.edges.size() < 2) continue;
     double from_len = edge_lane_.at(from)->length, to_len = edge_lane_.at(to)->length;
+    // Only routes the ego can drive without changing lanes; it starts on the rightmost lane
+    // that allows that.
+    auto good = lane_plan(r.edges);
+    int start_lane = -1;
+    for (const std::string& lane : edge_lanes_.at(from)) {
+      const LaneGeom* g = map_.find(lane);
+      if (good.front().count(lane) && (start_lane < 0 || g->index < start_lane))
+        start_lane = g->index;
+    }
+    if (start_lane < 0) continue;
     Task t;
     t.route = r.edges;
+    t.start_lane = start_lane;
     t.start_pos = std::min(from_len * 0.3, std::max(0.0, from_len - 10.0));
     t.goal_pos = std::max(1.0, to_len * 0.5);
     // findRoute covers whole edges; the task starts and ends inside them.
@@ -261,6 +310,7 @@ Task World::sample_task(uint64_t seed, double min_len, double max_len) {
 void World::reset(const Task& task) {
   if (task.route.empty()) throw SimError("task has an empty route");
   task_ = task;
+  plan_ = lane_plan(task_.route);
   if (task_.timeout_s <= 0) task_.timeout_s = task_.route_length / (5.0 / 3.6) + 20.0;
   std::vector<std::string> args = sumo_args(task.traffic_seed);
   args.erase(args.begin());  // load() takes the options without the program name
@@ -362,7 +412,8 @@ void World::insert_ego() {
     clear_start();
     char p[32];
     std::snprintf(p, sizeof p, "%.2f", task_.start_pos);
-    libsumo::Vehicle::add(kEgo, kEgoRoute, kEgoType, "now", "best", p, "0", "current", "max");
+    const std::string lane = task_.start_lane >= 0 ? std::to_string(task_.start_lane) : "best";
+    libsumo::Vehicle::add(kEgo, kEgoRoute, kEgoType, "now", lane, p, "0", "current", "max");
     for (int i = 0; i < 50; ++i) {
       advance();
       if (contains(libsumo::Vehicle::getIDList(), kEgo)) {
@@ -394,28 +445,23 @@ std::vector<std::string> World::route_lane_sequence() const {
   size_t k = 0;
   while (!lane.empty() && lanes.size() < 10000) {
     lanes.push_back(lane);
-    const LaneGeom* g = map_.find(lane);
-    if (!g) break;
-    auto it = links_.find(lane);
-    if (it == links_.end() || it->second.empty()) break;
-    std::string next;
-    if (g->internal) {
-      next = it->second.front().via_lane.empty() ? it->second.front().to_lane
-                                                  : it->second.front().via_lane;
-    } else {
-      while (k < task_.route.size() && task_.route[k] != g->edge) ++k;
-      if (k + 1 >= task_.route.size()) break;
-      for (const Link& l : it->second) {
-        const LaneGeom* to = map_.find(l.to_lane);
-        if (to && to->edge == task_.route[k + 1]) {
-          next = l.via_lane.empty() ? l.to_lane : l.via_lane;
-          break;
-        }
-      }
-    }
-    lane = next;
+    lane = lane_after(lane, k);
   }
   return lanes;
+}
+
+std::string World::lane_after(const std::string& lane, size_t& k) const {
+  const LaneGeom* g = map_.find(lane);
+  if (!g) return "";
+  if (g->internal) {
+    auto it = links_.find(lane);
+    if (it == links_.end() || it->second.empty()) return "";
+    const Link& l = it->second.front();
+    return l.via_lane.empty() ? l.to_lane : l.via_lane;
+  }
+  while (k < task_.route.size() && task_.route[k] != g->edge) ++k;
+  if (k + 1 >= task_.route.size()) return "";
+  return next_lane(lane, task_.route[k + 1], k + 1 < plan_.size() ? &plan_[k + 1] : nullptr);
 }
 
 StepResult World::step(const Control& c) {
@@ -559,24 +605,7 @@ void World::compute_path() {
     if (!g->internal && g->edge == task_.route.back()) break;  // the goal lies on this lane
     s += std::max(0.0, g->length - from);
     from = 0;
-    auto it = links_.find(lane);
-    if (it == links_.end() || it->second.empty()) break;
-    std::string next;
-    if (g->internal) {
-      const Link& l = it->second.front();
-      next = l.via_lane.empty() ? l.to_lane : l.via_lane;
-    } else {
-      while (k < task_.route.size() && task_.route[k] != g->edge) ++k;
-      if (k + 1 >= task_.route.size()) break;
-      for (const Link& l : it->second) {
-        const LaneGeom* to = map_.find(l.to_lane);
-        if (to && to->edge == task_.route[k + 1]) {
-          next = l.via_lane.empty() ? l.to_lane : l.via_lane;
-          break;
-        }
-      }
-    }
-    lane = next;
+    lane = lane_after(lane, k);
   }
   path_min_ = {1e300, 1e300};
   path_max_ = {-1e300, -1e300};

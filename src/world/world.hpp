@@ -6,6 +6,7 @@
 #include <memory>
 #include <string>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include "app/settings.hpp"
@@ -18,6 +19,7 @@ namespace cd {
 
 struct Task {
   std::vector<std::string> route;  // edge ids, start to goal
+  int start_lane = -1;             // lane index on the first edge (-1: SUMO's best)
   double start_pos = 0;            // m along the first edge
   double goal_pos = 0;             // m along the last edge
   uint64_t traffic_seed = 0;
@@ -166,6 +168,14 @@ class World {
   bool junction_lane_blocked(const std::string& lane, bool minor);
   StepResult check_events(bool ego_present);
   std::vector<std::string> route_lane_sequence() const;
+  std::vector<std::unordered_set<std::string>> lane_plan(
+      const std::vector<std::string>& route) const;
+  // The lane of `to_edge` reached from `lane` (its via lane when it has one), preferring
+  // lanes in `good`; "" when there is no connection.
+  std::string next_lane(const std::string& lane, const std::string& to_edge,
+                        const std::unordered_set<std::string>* good) const;
+  // The lane after `lane` along the task's route; k tracks the route edge index.
+  std::string lane_after(const std::string& lane, size_t& k) const;
 
   Settings settings_;
   EgoModel ego_model_;
@@ -179,6 +189,8 @@ class World {
   std::unordered_map<std::string, std::string> via_head_;          // internal lane -> its via
   std::unordered_map<std::string, std::vector<std::string>> foes_; // internal lane -> foe lanes
   std::unordered_map<std::string, const LaneGeom*> edge_lane_;  // car edge -> rightmost car lane
+  std::unordered_map<std::string, std::vector<std::string>> edge_lanes_;  // car edge -> lanes
+  std::vector<std::unordered_set<std::string>> plan_;  // lane plan of the current task
   std::unordered_map<std::string, double> sidewalk_length_;     // edge -> its sidewalk length
   std::vector<std::string> car_edges_;  // normal edges with a lane for cars
   std::vector<std::string> ped_edges_;  // normal edges with a sidewalk
