@@ -1,6 +1,7 @@
 #include "app/settings.hpp"
 
 #include <limits>
+#include <map>
 
 #include <nlohmann/json.hpp>
 
@@ -11,92 +12,144 @@ namespace cd {
 
 namespace {
 
-void read_density(const Section& s, TrafficDensity& d) {
-  d.cars_per_km = s.number("cars_per_km", d.cars_per_km, 0, 200);
-  d.peds_per_km = s.number("peds_per_km", d.peds_per_km, 0, 200);
-  s.finish();
+// Every setting once: its table, key, place in Settings and allowed values. Reading a config
+// and writing settings to JSON both walk this list, so they cannot disagree.
+template <class S, class V>
+void visit_settings(S& st, V&& v) {
+  constexpr int64_t kMaxI64 = std::numeric_limits<int64_t>::max();
+  v.text("world", "town", st.world.town, {});
+  v.text("world", "traffic", st.world.traffic, {"empty", "regular", "dense"});
+  v.number("world", "dt", st.world.dt, 0.01, 1.0);
+  v.number("world", "warmup_s", st.world.warmup_s, 0, 3600);
+  v.number("world", "view_radius", st.world.view_radius, 10, 500);
+  v.number("world", "command_horizon", st.world.command_horizon, 0, 500);
+  v.number("world", "path_free_margin", st.world.path_free_margin, 0, 100);
+  auto density = [&](const char* table, auto& d) {
+    v.number(table, "cars_per_km", d.cars_per_km, 0, 200);
+    v.number(table, "peds_per_km", d.peds_per_km, 0, 200);
+  };
+  density("world.density.regular", st.world.regular);
+  density("world.density.dense", st.world.dense);
+
+  v.number("ego", "length", st.ego.length, 1, 20);
+  v.number("ego", "width", st.ego.width, 0.5, 5);
+  v.number("ego", "max_accel", st.ego.max_accel, 0.1, 20);
+  v.number("ego", "max_decel", st.ego.max_decel, 0.1, 20);
+  v.number("ego", "max_speed", st.ego.max_speed, 1, 80);
+  v.number("ego", "rolling", st.ego.rolling, 0, 2);
+  v.number("ego", "drag", st.ego.drag, 0, 0.1);
+
+  v.integer("bev", "height", st.bev.height, 8, 1024);
+  v.integer("bev", "width", st.bev.width, 8, 1024);
+  v.number("bev", "metres_per_pixel", st.bev.metres_per_pixel, 0.05, 5);
+  v.number("bev", "ego_row_fraction", st.bev.ego_row_fraction, 0.0, 1.0);
+  v.number("bev", "dash_length", st.bev.dash_length, 0.1, 50);
+  v.number("bev", "dash_gap", st.bev.dash_gap, 0.1, 50);
+  v.number("bev", "marking_width", st.bev.marking_width, 0.01, 2);
+  v.integer("bev", "static_supersample", st.bev.static_supersample, 1, 8);
+
+  v.number("expert", "cruise_speed", st.expert.cruise_speed, 0.5, 40);
+  v.number("expert", "turn_speed", st.expert.turn_speed, 0.5, 40);
+  v.number("expert", "comfort_decel", st.expert.comfort_decel, 0.5, 10);
+  v.number("expert", "min_gap", st.expert.min_gap, 0.5, 20);
+  v.number("expert", "headway", st.expert.headway, 0.1, 5);
+  v.number("expert", "stop_margin", st.expert.stop_margin, 0, 10);
+  v.number("expert", "yield_time", st.expert.yield_time, 0, 30);
+  v.number("expert", "vehicle_margin", st.expert.vehicle_margin, 0, 5);
+  v.number("expert", "ped_margin", st.expert.ped_margin, 0, 5);
+  v.number("expert", "ped_lookahead_s", st.expert.ped_lookahead_s, 0, 10);
+  v.number("expert", "gain", st.expert.gain, 0.1, 20);
+
+  v.integer("collect", "episodes", st.collect.episodes, 1, 1000000);
+  v.integer("collect", "seed", st.collect.seed, 0, kMaxI64);
+  v.integer("collect", "workers", st.collect.workers, 1, 256);
+  v.text("collect", "out", st.collect.out, {});
+  v.number("collect", "min_route_m", st.collect.min_route_m, 0, 1e5);
+  v.number("collect", "max_route_m", st.collect.max_route_m, 1, 1e5);
+  v.number("collect", "max_episode_s", st.collect.max_episode_s, 0, 1e5);
+  v.flag("collect.noise", "enabled", st.collect.noise.enabled);
+  v.number("collect.noise", "rate_per_s", st.collect.noise.rate_per_s, 0, 10);
+  v.number("collect.noise", "min_s", st.collect.noise.min_s, 0.1, 60);
+  v.number("collect.noise", "max_s", st.collect.noise.max_s, 0.1, 60);
 }
+
+// Reads each field from its table; tables are opened once, and checked for unknown keys
+// after every field was read.
+class Reader {
+ public:
+  explicit Reader(Section root) : root_(std::move(root)) {}
+
+  void number(const std::string& table, const char* key, double& x, double lo, double hi) {
+    x = at(table).number(key, x, lo, hi);
+  }
+  template <class I>
+  void integer(const std::string& table, const char* key, I& x, int64_t lo, int64_t hi) {
+    x = static_cast<I>(at(table).integer(key, static_cast<int64_t>(x), lo, hi));
+  }
+  void text(const std::string& table, const char* key, std::string& x,
+            const std::vector<std::string>& allowed) {
+    x = at(table).string(key, x, allowed);
+  }
+  void flag(const std::string& table, const char* key, bool& x) {
+    x = at(table).boolean(key, x);
+  }
+  void finish() {
+    for (const auto& [name, section] : tables_) section.finish();
+    root_.finish();
+  }
+
+ private:
+  // "world.density.regular" -> root.section("world").section("density").section("regular")
+  const Section& at(const std::string& path) {
+    auto it = tables_.find(path);
+    if (it != tables_.end()) return it->second;
+    auto dot = path.rfind('.');
+    const Section& parent = dot == std::string::npos ? root_ : at(path.substr(0, dot));
+    Section s = parent.section(dot == std::string::npos ? path : path.substr(dot + 1));
+    return tables_.emplace(path, std::move(s)).first->second;
+  }
+  Section root_;
+  std::map<std::string, Section> tables_;
+};
+
+// Writes each field into a nested JSON object.
+struct Writer {
+  nlohmann::json out = nlohmann::json::object();
+
+  template <class T>
+  void put(const std::string& table, const char* key, const T& x) {
+    nlohmann::json* node = &out;
+    size_t start = 0;
+    while (start <= table.size()) {
+      size_t dot = table.find('.', start);
+      if (dot == std::string::npos) dot = table.size();
+      node = &(*node)[table.substr(start, dot - start)];
+      start = dot + 1;
+    }
+    (*node)[key] = x;
+  }
+  void number(const std::string& t, const char* k, const double& x, double, double) { put(t, k, x); }
+  template <class I>
+  void integer(const std::string& t, const char* k, const I& x, int64_t, int64_t) { put(t, k, x); }
+  void text(const std::string& t, const char* k, const std::string& x,
+            const std::vector<std::string>&) {
+    put(t, k, x);
+  }
+  void flag(const std::string& t, const char* k, const bool& x) { put(t, k, x); }
+};
 
 }  // namespace
 
 Settings load_settings(const std::string& path) {
-  Section root = ConfigFile::load(path);
   Settings st;
   st.source = path;
-
-  Section w = root.section("world");
-  st.world.town = w.string("town", st.world.town);
-  st.world.traffic = w.string("traffic", st.world.traffic, {"empty", "regular", "dense"});
-  st.world.dt = w.number("dt", st.world.dt, 0.01, 1.0);
-  st.world.warmup_s = w.number("warmup_s", st.world.warmup_s, 0, 3600);
-  Section dens = w.section("density");
-  read_density(dens.section("regular"), st.world.regular);
-  read_density(dens.section("dense"), st.world.dense);
-  dens.finish();
-  st.world.view_radius = w.number("view_radius", st.world.view_radius, 10, 500);
-  st.world.command_horizon = w.number("command_horizon", st.world.command_horizon, 0, 500);
-  st.world.path_free_margin = w.number("path_free_margin", st.world.path_free_margin, 0, 100);
-  w.finish();
-
-  Section e = root.section("ego");
-  st.ego.length = e.number("length", st.ego.length, 1, 20);
-  st.ego.width = e.number("width", st.ego.width, 0.5, 5);
-  st.ego.max_accel = e.number("max_accel", st.ego.max_accel, 0.1, 20);
-  st.ego.max_decel = e.number("max_decel", st.ego.max_decel, 0.1, 20);
-  st.ego.max_speed = e.number("max_speed", st.ego.max_speed, 1, 80);
-  st.ego.rolling = e.number("rolling", st.ego.rolling, 0, 2);
-  st.ego.drag = e.number("drag", st.ego.drag, 0, 0.1);
-  e.finish();
-
-  Section b = root.section("bev");
-  st.bev.height = static_cast<int>(b.integer("height", st.bev.height, 8, 1024));
-  st.bev.width = static_cast<int>(b.integer("width", st.bev.width, 8, 1024));
-  st.bev.metres_per_pixel = b.number("metres_per_pixel", st.bev.metres_per_pixel, 0.05, 5);
-  st.bev.ego_row_fraction = b.number("ego_row_fraction", st.bev.ego_row_fraction, 0.0, 1.0);
-  st.bev.dash_length = b.number("dash_length", st.bev.dash_length, 0.1, 50);
-  st.bev.dash_gap = b.number("dash_gap", st.bev.dash_gap, 0.1, 50);
-  st.bev.marking_width = b.number("marking_width", st.bev.marking_width, 0.01, 2);
-  st.bev.static_supersample =
-      static_cast<int>(b.integer("static_supersample", st.bev.static_supersample, 1, 8));
-  b.finish();
-
-  Section x = root.section("expert");
-  st.expert.cruise_speed = x.number("cruise_speed", st.expert.cruise_speed, 0.5, 40);
-  st.expert.turn_speed = x.number("turn_speed", st.expert.turn_speed, 0.5, 40);
-  st.expert.comfort_decel = x.number("comfort_decel", st.expert.comfort_decel, 0.5, 10);
-  st.expert.min_gap = x.number("min_gap", st.expert.min_gap, 0.5, 20);
-  st.expert.headway = x.number("headway", st.expert.headway, 0.1, 5);
-  st.expert.stop_margin = x.number("stop_margin", st.expert.stop_margin, 0, 10);
-  st.expert.yield_time = x.number("yield_time", st.expert.yield_time, 0, 30);
-  st.expert.vehicle_margin = x.number("vehicle_margin", st.expert.vehicle_margin, 0, 5);
-  st.expert.ped_margin = x.number("ped_margin", st.expert.ped_margin, 0, 5);
-  st.expert.ped_lookahead_s = x.number("ped_lookahead_s", st.expert.ped_lookahead_s, 0, 10);
-  st.expert.gain = x.number("gain", st.expert.gain, 0.1, 20);
-  x.finish();
-
-  Section c = root.section("collect");
-  st.collect.episodes = static_cast<int>(c.integer("episodes", st.collect.episodes, 1, 1000000));
-  st.collect.seed = static_cast<uint64_t>(
-      c.integer("seed", static_cast<int64_t>(st.collect.seed), 0,
-                std::numeric_limits<int64_t>::max()));
-  st.collect.workers = static_cast<int>(c.integer("workers", st.collect.workers, 1, 256));
-  st.collect.out = c.string("out", st.collect.out);
-  st.collect.min_route_m = c.number("min_route_m", st.collect.min_route_m, 0, 1e5);
-  st.collect.max_route_m = c.number("max_route_m", st.collect.max_route_m, 1, 1e5);
-  st.collect.max_episode_s = c.number("max_episode_s", st.collect.max_episode_s, 0, 1e5);
-  Section n = c.section("noise");
-  st.collect.noise.enabled = n.boolean("enabled", st.collect.noise.enabled);
-  st.collect.noise.rate_per_s = n.number("rate_per_s", st.collect.noise.rate_per_s, 0, 10);
-  st.collect.noise.min_s = n.number("min_s", st.collect.noise.min_s, 0.1, 60);
-  st.collect.noise.max_s = n.number("max_s", st.collect.noise.max_s, 0.1, 60);
-  n.finish();
-  c.finish();
+  Reader reader(ConfigFile::load(path));
+  visit_settings(st, reader);
+  reader.finish();
   if (st.collect.max_route_m < st.collect.min_route_m)
     throw ConfigError(path + ": collect.max_route_m must be >= collect.min_route_m");
   if (st.collect.noise.max_s < st.collect.noise.min_s)
     throw ConfigError(path + ": collect.noise.max_s must be >= collect.noise.min_s");
-
-  root.finish();
   return st;
 }
 
@@ -108,56 +161,9 @@ const TrafficDensity& traffic_density(const WorldSettings& w) {
 }
 
 nlohmann::json settings_to_json(const Settings& s) {
-  using nlohmann::json;
-  json j;
-  j["world"] = {{"town", s.world.town},
-                {"traffic", s.world.traffic},
-                {"dt", s.world.dt},
-                {"warmup_s", s.world.warmup_s},
-                {"density",
-                 {{"regular", {{"cars_per_km", s.world.regular.cars_per_km},
-                               {"peds_per_km", s.world.regular.peds_per_km}}},
-                  {"dense", {{"cars_per_km", s.world.dense.cars_per_km},
-                             {"peds_per_km", s.world.dense.peds_per_km}}}}},
-                {"view_radius", s.world.view_radius},
-                {"command_horizon", s.world.command_horizon},
-                {"path_free_margin", s.world.path_free_margin}};
-  j["ego"] = {{"length", s.ego.length},       {"width", s.ego.width},
-              {"max_accel", s.ego.max_accel}, {"max_decel", s.ego.max_decel},
-              {"max_speed", s.ego.max_speed}, {"rolling", s.ego.rolling},
-              {"drag", s.ego.drag}};
-  j["bev"] = {{"height", s.bev.height},
-              {"width", s.bev.width},
-              {"metres_per_pixel", s.bev.metres_per_pixel},
-              {"ego_row_fraction", s.bev.ego_row_fraction},
-              {"dash_length", s.bev.dash_length},
-              {"dash_gap", s.bev.dash_gap},
-              {"marking_width", s.bev.marking_width},
-              {"static_supersample", s.bev.static_supersample}};
-  j["expert"] = {{"cruise_speed", s.expert.cruise_speed},
-                 {"turn_speed", s.expert.turn_speed},
-                 {"comfort_decel", s.expert.comfort_decel},
-                 {"min_gap", s.expert.min_gap},
-                 {"headway", s.expert.headway},
-                 {"stop_margin", s.expert.stop_margin},
-                 {"yield_time", s.expert.yield_time},
-                 {"vehicle_margin", s.expert.vehicle_margin},
-                 {"ped_margin", s.expert.ped_margin},
-                 {"ped_lookahead_s", s.expert.ped_lookahead_s},
-                 {"gain", s.expert.gain}};
-  j["collect"] = {{"episodes", s.collect.episodes},
-                  {"seed", s.collect.seed},
-                  {"workers", s.collect.workers},
-                  {"out", s.collect.out},
-                  {"min_route_m", s.collect.min_route_m},
-                  {"max_route_m", s.collect.max_route_m},
-                  {"max_episode_s", s.collect.max_episode_s},
-                  {"noise",
-                   {{"enabled", s.collect.noise.enabled},
-                    {"rate_per_s", s.collect.noise.rate_per_s},
-                    {"min_s", s.collect.noise.min_s},
-                    {"max_s", s.collect.noise.max_s}}}};
-  return j;
+  Writer writer;
+  visit_settings(s, writer);
+  return writer.out;
 }
 
 }  // namespace cd
