@@ -24,6 +24,7 @@ void add_quickstart(CLI::App& app) {
     std::printf("recording %d expert episodes in %s, %s traffic, %d workers -> %s\n",
                 s.collect.episodes, s.world.town.c_str(), s.world.traffic.c_str(),
                 s.collect.workers, s.collect.out.c_str());
+    std::fflush(stdout);  // keep this header above the progress lines on stderr
     CollectReport r = collect(s);
     std::map<std::string, int> n;
     for (const auto& e : r.episodes) ++n[e.outcome];
