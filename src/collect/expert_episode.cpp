@@ -1,6 +1,7 @@
 #include "collect/expert_episode.hpp"
 
 #include <cstdio>
+#include <iterator>
 #include <filesystem>
 
 #include "core/rng.hpp"
@@ -12,19 +13,23 @@ namespace {
 
 constexpr double kAbsentDistance = 100.0;  // m recorded when there is no leader, light, ...
 
-// Appends the ground-truth causes of the current state, one value per series.
+// Appends the ground-truth causes of the current state, one value per series. The values
+// are listed in the order of cause_names(), which is alphabetical like d.causes.
 void record_causes(const GroundTruth& gt, EpisodeData& d) {
-  auto put = [&](const char* name, double v) { d.causes[name].push_back(static_cast<float>(v)); };
-  put("lead_present", gt.lead_present);
-  put("lead_distance", gt.lead_present ? gt.lead_distance : kAbsentDistance);
-  put("lead_speed", gt.lead_present ? gt.lead_speed : 0.0);
-  put("tl_state", gt.tl_state);
-  put("tl_distance", gt.tl_state != kTlNone ? gt.tl_distance : kAbsentDistance);
-  put("ped_on_path", gt.ped_on_path);
-  put("ped_distance", gt.ped_on_path ? gt.ped_distance : kAbsentDistance);
-  put("must_yield", gt.must_yield);
-  put("junction_distance", gt.junction_distance);
-  put("path_free", gt.path_free);
+  const double values[] = {
+      gt.junction_distance,
+      gt.lead_present ? gt.lead_distance : kAbsentDistance,
+      double(gt.lead_present),
+      gt.lead_present ? gt.lead_speed : 0.0,
+      double(gt.must_yield),
+      double(gt.path_free),
+      gt.ped_on_path ? gt.ped_distance : kAbsentDistance,
+      double(gt.ped_on_path),
+      gt.tl_state != kTlNone ? gt.tl_distance : kAbsentDistance,
+      double(gt.tl_state)};
+  static_assert(std::size(values) == 10);
+  size_t i = 0;
+  for (auto& [name, series] : d.causes) series.push_back(static_cast<float>(values[i++]));
 }
 
 }  // namespace
@@ -50,6 +55,7 @@ void ExpertRecorder::begin(EpisodeData& d) const {
   d.height = bev.config().height;
   d.width = bev.config().width;
   d.action_dim = 2;
+  for (const auto& name : cause_names()) d.causes[name];  // the series record_causes fills
 }
 
 Control ExpertRecorder::record_step(EpisodeData& d) const {

@@ -429,6 +429,7 @@ void World::insert_ego() {
             kEgo, libsumo::CMD_GET_PERSON_VARIABLE, r,
             {libsumo::VAR_POSITION, libsumo::VAR_ANGLE, libsumo::VAR_SPEED});
         advance();  // subscription results exist after a step
+        nearby_ = libsumo::Vehicle::getContextSubscriptionResults(kEgo);
         ego_entry_time_ = libsumo::Simulation::getTime();
         ego_present_ = true;
         return;
@@ -472,7 +473,9 @@ StepResult World::step(const Control& c) {
   sumo_call("simulation step failed", [&] {
     libsumo::Vehicle::setSpeed(kEgo, v1);
     advance();
-    present = contains(libsumo::Vehicle::getIDList(), kEgo);
+    // The ego is part of its own context subscription: absent from it means gone.
+    nearby_ = libsumo::Vehicle::getContextSubscriptionResults(kEgo);
+    present = nearby_.count(kEgo) > 0;
   });
   StepResult r;
   sumo_call("reading the simulation failed", [&] { r = check_events(present); });
@@ -481,9 +484,13 @@ StepResult World::step(const Control& c) {
 }
 
 void World::hand_ego_to_sumo() {
-  sumo_call("cannot hand the ego to SUMO", [] {
+  const double r = settings_.world.view_radius;
+  sumo_call("cannot hand the ego to SUMO", [r] {
     libsumo::Vehicle::setSpeedMode(kEgo, 31);
     libsumo::Vehicle::setSpeed(kEgo, -1);
+    // The baseline is SUMO alone: the World's own queries are not part of it.
+    libsumo::Vehicle::unsubscribeContext(kEgo, libsumo::CMD_GET_VEHICLE_VARIABLE, r);
+    libsumo::Vehicle::unsubscribeContext(kEgo, libsumo::CMD_GET_PERSON_VARIABLE, r);
   });
 }
 
@@ -566,7 +573,7 @@ void World::refresh() {
   // through its spatial index, where asking for every actor by id would cost far more.
   actors_.clear();
   const double r2 = settings_.world.view_radius * settings_.world.view_radius;
-  for (const auto& [id, vars] : libsumo::Vehicle::getContextSubscriptionResults(kEgo)) {
+  for (const auto& [id, vars] : nearby_) {
     if (id == kEgo) continue;
     auto number = [&](int var) {
       auto it = vars.find(var);

@@ -3,11 +3,14 @@
 // over an immutable RoadMap. Reset to a Task, step the ego with throttle/brake, read what
 // the sensors, the checks and the (privileged) expert need.
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <string>
 #include <unordered_map>
 #include <unordered_set>
 #include <vector>
+
+#include <libsumo/TraCIDefs.h>
 
 #include "app/settings.hpp"
 #include "core/geometry.hpp"
@@ -209,6 +212,8 @@ class World {
   std::vector<PathLane> path_;
   std::vector<std::string> route_lanes_;
   Vec2 path_min_, path_max_;              // bounding box of the path's lanes
+  // Road users within view_radius after the last step (SUMO's context subscription).
+  std::map<std::string, std::map<int, std::shared_ptr<libsumo::TraCIResult>>> nearby_;
   char prev_link_state_ = 0;
   double prev_link_distance_ = 1e9;
   bool ego_present_ = false;

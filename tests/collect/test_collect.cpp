@@ -90,6 +90,24 @@ for path in sys.argv[1:]:
         assert np.all(speed >= 0) and np.all(np.isfinite(speed)), f"{path}: bad speeds"
         action = f["action"][:]
         assert np.all((action >= 0) & (action <= 1)), f"{path}: actions outside [0,1]"
+        # The causes agree with each other and with the documented codes.
+        c = {name: f["causes"][name][:] for name in causes}
+        assert sorted(causes) == ["junction_distance", "lead_distance", "lead_present",
+                                  "lead_speed", "must_yield", "path_free", "ped_distance",
+                                  "ped_on_path", "tl_distance", "tl_state"], causes
+        for flag in ["lead_present", "must_yield", "path_free", "ped_on_path"]:
+            assert set(np.unique(c[flag])).issubset({0.0, 1.0}), f"{path}: {flag} not 0/1"
+        assert set(np.unique(c["tl_state"])).issubset({0.0, 1.0, 2.0, 3.0, 4.0})
+        assert np.all(c["lead_distance"][c["lead_present"] == 0] == 100.0)
+        assert np.all(c["lead_distance"][c["lead_present"] == 1] < 100.0)
+        assert np.all(c["tl_distance"][c["tl_state"] == 0] == 100.0)
+        assert np.all(c["ped_distance"][c["ped_on_path"] == 0] == 100.0)
+        # A red light close ahead always blocks the path.
+        red_close = (c["tl_state"] == 1) & (c["tl_distance"] < 3.0)
+        assert np.all(c["path_free"][red_close] == 0), f"{path}: red light but path free"
+        # Commands are the documented codes, and speed changes match the time step's limits.
+        assert set(np.unique(f["command"][:])).issubset({0, 1, 2, 3})
+        assert np.all(np.abs(np.diff(speed)) <= 0.1 * 8.0 + 1e-4), f"{path}: speed jumps"
     print("ok", path)
 )PY";
 
