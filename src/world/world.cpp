@@ -126,7 +126,7 @@ std::vector<std::string> World::sumo_args(uint64_t seed) const {
 void World::build_map() {
   static const std::regex crossing_re(".*_c[0-9]+$"), walking_re(".*_w[0-9]+$");
   std::unordered_map<std::string, std::vector<int>> driving_by_edge;
-  std::set<std::string> car_edges, ped_edges;
+  std::set<std::string> car_edges;
   for (const std::string& id : libsumo::Lane::getIDList()) {
     LaneGeom g;
     g.id = id;
@@ -151,10 +151,6 @@ void World::build_map() {
       if (std::regex_match(g.edge, crossing_re) && g.internal) g.kind = LaneKind::Crossing;
       else if (std::regex_match(g.edge, walking_re) && g.internal) g.kind = LaneKind::WalkingArea;
       else g.kind = LaneKind::Sidewalk;
-      if (!g.internal) {
-        ped_edges.insert(g.edge);
-        sidewalk_length_[g.edge] = g.length;
-      }
     } else {
       continue;  // rail, bike-only and similar lanes are not part of this world
     }
@@ -165,6 +161,7 @@ void World::build_map() {
     }
     map_.add(std::move(g));
     const LaneGeom& added = map_.lanes.back();
+    if (added.kind == LaneKind::Sidewalk && !added.internal) sidewalk_of_edge_[added.edge] = map_.lanes.size() - 1;
     if (added.kind == LaneKind::Driving && !added.internal)
       driving_by_edge[added.edge].push_back(static_cast<int>(map_.lanes.size() - 1));
   }
@@ -225,7 +222,8 @@ void World::build_map() {
     }
   }
   car_edges_.assign(car_edges.begin(), car_edges.end());
-  ped_edges_.assign(ped_edges.begin(), ped_edges.end());
+  for (const auto& [edge, lane] : sidewalk_of_edge_) ped_edges_.push_back(edge);
+  std::sort(ped_edges_.begin(), ped_edges_.end());  // hash order must not decide anything
 }
 
 std::string World::next_lane(const std::string& lane, const std::string& to_edge,
@@ -391,9 +389,13 @@ void World::top_up_background() {
     if (from == to) continue;
     auto stages = libsumo::Simulation::findIntermodalRoute(from, to, "");
     if (stages.empty() || stages.front().edges.empty()) continue;
+    const LaneGeom& walk = map_.lanes[sidewalk_of_edge_.at(from)];
+    const double pos = rng.uniform(0.0, walk.length);
+    // Like cars, pedestrians never materialise in sight of the ego.
+    if (ego_present_ && (point_at(walk, pos) - ego_.pose.pos).norm() < settings_.world.view_radius)
+      continue;
     std::string id = "ped" + std::to_string(next_actor_id_++);
-    libsumo::Person::add(id, from, rng.uniform(0.0, sidewalk_length_.at(from)),
-                         libsumo::DEPARTFLAG_NOW);
+    libsumo::Person::add(id, from, pos, libsumo::DEPARTFLAG_NOW);
     for (const auto& st : stages) libsumo::Person::appendStage(id, st);
     ++peds;
   }

@@ -194,7 +194,7 @@ class World {
   std::unordered_map<std::string, const LaneGeom*> edge_lane_;  // car edge -> rightmost car lane
   std::unordered_map<std::string, std::vector<std::string>> edge_lanes_;  // car edge -> lanes
   std::vector<std::unordered_set<std::string>> plan_;  // lane plan of the current task
-  std::unordered_map<std::string, double> sidewalk_length_;     // edge -> its sidewalk length
+  std::unordered_map<std::string, size_t> sidewalk_of_edge_;    // edge -> its sidewalk lane
   std::vector<std::string> car_edges_;  // normal edges with a lane for cars
   std::vector<std::string> ped_edges_;  // normal edges with a sidewalk
   double lane_km_ = 0;                  // km of driving lane (traffic scales with it)
