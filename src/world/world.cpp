@@ -161,7 +161,8 @@ void World::build_map() {
     }
     map_.add(std::move(g));
     const LaneGeom& added = map_.lanes.back();
-    if (added.kind == LaneKind::Sidewalk && !added.internal) sidewalk_of_edge_[added.edge] = map_.lanes.size() - 1;
+    if (added.kind == LaneKind::Sidewalk && !added.internal)
+      sidewalk_of_edge_[added.edge] = map_.lanes.size() - 1;
     if (added.kind == LaneKind::Driving && !added.internal)
       driving_by_edge[added.edge].push_back(static_cast<int>(map_.lanes.size() - 1));
   }
