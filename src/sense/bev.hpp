@@ -40,7 +40,7 @@ struct BevConfig {
   double ego_row_fraction = 0.75;  // ego sits 3/4 down the image: more view ahead than behind
   double dash_length = 3.0;        // m, painted part of a dashed divider
   double dash_gap = 3.0;           // m
-  double marking_width = 0.25;     // m, drawn at least one pixel wide
+  double marking_width = 0.25;     // m; drawn at least ~1 output pixel wide so lines never break
   int static_supersample = 2;      // static layers are pre-rasterised at mpp / this factor
 };
 

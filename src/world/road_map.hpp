@@ -25,7 +25,6 @@ struct LaneGeom {
   double width = 3.2;
   double length = 0;
   Polyline shape;  // centre line in driving direction
-  Vec2 min{1e300, 1e300}, max{-1e300, -1e300};  // bounding box of the centre line
   // Only for normal driving lanes: does a driving lane of the same edge lie to the left
   // (then the left border is a dashed lane divider) and to the right.
   bool has_left_neighbour = false;

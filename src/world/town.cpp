@@ -50,7 +50,8 @@ std::vector<std::string> town_names() {
   std::vector<std::string> names;
   for (const auto& [path, text] : embedded_files()) {
     if (path.rfind(kTownPrefix, 0) == 0 && ends_with(path, kTownSuffix))
-      names.push_back(path.substr(6, path.size() - 6 - 5));
+      names.push_back(path.substr(std::strlen(kTownPrefix),
+                                  path.size() - std::strlen(kTownPrefix) - std::strlen(kTownSuffix)));
   }
   return names;
 }

@@ -155,10 +155,6 @@ void World::build_map() {
       continue;  // rail, bike-only and similar lanes are not part of this world
     }
     if (g.shape.size() < 2) continue;
-    for (const Vec2& q : g.shape) {
-      g.min = {std::min(g.min.x, q.x), std::min(g.min.y, q.y)};
-      g.max = {std::max(g.max.x, q.x), std::max(g.max.y, q.y)};
-    }
     map_.add(std::move(g));
     const LaneGeom& added = map_.lanes.back();
     if (added.kind == LaneKind::Sidewalk && !added.internal)

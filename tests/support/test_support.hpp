@@ -140,6 +140,19 @@ inline int open_out(const std::string& path) {
   return ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
 }
 
+// In a forked child: stdin from /dev/null, stdout and stderr to files, then exec.
+[[noreturn]] inline void redirect_and_exec(const std::vector<std::string>& argv,
+                                           const std::string& cwd, const std::string& out_path,
+                                           const std::string& err_path) {
+  int in = ::open("/dev/null", O_RDONLY);
+  int out = open_out(out_path), err = open_out(err_path);
+  if (in < 0 || out < 0 || err < 0) ::_exit(126);
+  ::dup2(in, 0);
+  ::dup2(out, 1);
+  ::dup2(err, 2);
+  exec_child(argv, cwd);
+}
+
 }  // namespace detail
 
 // Runs argv (argv[0] an absolute path) with stdin from /dev/null and stdout/stderr captured
@@ -151,15 +164,7 @@ inline CommandResult run_command(const std::vector<std::string>& argv, const std
   std::fflush(nullptr);
   pid_t pid = ::fork();
   if (pid < 0) throw std::runtime_error("fork failed");
-  if (pid == 0) {
-    int in = ::open("/dev/null", O_RDONLY);
-    int out = detail::open_out(out_path), err = detail::open_out(err_path);
-    if (in < 0 || out < 0 || err < 0) ::_exit(126);
-    ::dup2(in, 0);
-    ::dup2(out, 1);
-    ::dup2(err, 2);
-    detail::exec_child(argv, cwd);
-  }
+  if (pid == 0) detail::redirect_and_exec(argv, cwd, out_path, err_path);
   CommandResult r;
   int status = 0;
   auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
@@ -204,13 +209,7 @@ inline pid_t spawn_group(const std::vector<std::string>& argv, const std::string
   if (pid < 0) throw std::runtime_error("fork failed");
   if (pid == 0) {
     ::setpgid(0, 0);
-    int in = ::open("/dev/null", O_RDONLY);
-    int out = detail::open_out(out_path), err = detail::open_out(err_path);
-    if (in < 0 || out < 0 || err < 0) ::_exit(126);
-    ::dup2(in, 0);
-    ::dup2(out, 1);
-    ::dup2(err, 2);
-    detail::exec_child(argv, "");
+    detail::redirect_and_exec(argv, "", out_path, err_path);
   }
   ::setpgid(pid, pid);  // also from the parent, so kill(-pid) works at once
   return pid;
