@@ -71,6 +71,44 @@ void visit_settings(S& st, V&& v) {
   v.number("collect.noise", "rate_per_s", st.collect.noise.rate_per_s, 0, 10);
   v.number("collect.noise", "min_s", st.collect.noise.min_s, 0.1, 60);
   v.number("collect.noise", "max_s", st.collect.noise.max_s, 0.1, 60);
+
+  v.number("control", "kp", st.control.kp, 0, 100);
+  v.number("control", "ki", st.control.ki, 0, 100);
+  v.number("control", "kd", st.control.kd, 0, 100);
+  v.number("control", "integral_limit", st.control.integral_limit, 0, 100);
+  v.number("control", "stop_speed", st.control.stop_speed, 0, 5);
+  v.number("control", "hold_brake", st.control.hold_brake, 0, 1);
+
+  v.text("model", "backbone", st.model.backbone, {"small", "resnet34"});
+  v.integer("model", "history", st.model.history, 1, 64);
+  v.integer("model", "history_stride", st.model.history_stride, 1, 100);
+  v.text("model", "action_head", st.model.action_head, {"throttle_brake", "target_speed"});
+  v.flag("model", "speed_input", st.model.speed_input);
+  v.integer("model", "features", st.model.features, 8, 4096);
+  v.number("model", "speed_loss_weight", st.model.speed_loss_weight, 0, 100);
+  v.number("model", "dropout", st.model.dropout, 0, 0.95);
+
+  v.integer("train", "epochs", st.train.epochs, 1, 100000);
+  v.integer("train", "batch_size", st.train.batch_size, 1, 65536);
+  v.number("train", "lr", st.train.lr, 1e-9, 1);
+  v.text("train", "loss", st.train.loss, {"l1", "l2"});
+  v.number("train", "val_fraction", st.train.val_fraction, 0, 0.9);
+  v.integer("train", "lr_patience", st.train.lr_patience, 0, 1000);
+  v.number("train", "lr_decay", st.train.lr_decay, 0.01, 1);
+  v.number("train", "lr_min", st.train.lr_min, 0, 1);
+  v.integer("train", "seed", st.train.seed, 0, kMaxI64);
+  v.integer("train", "threads", st.train.threads, 1, 256);
+  v.text("train", "device", st.train.device, {"cpu", "cuda", "auto"});
+  v.integer("train", "max_samples", st.train.max_samples, 0, kMaxI64);
+  v.text("train", "out", st.train.out, {});
+
+  v.text("eval", "suite", st.eval.suite, {});
+  v.integer("eval", "trials", st.eval.trials, 0, 1000);
+  v.integer("eval", "workers", st.eval.workers, 1, 256);
+  v.text("eval", "out", st.eval.out, {});
+  v.number("eval", "prefill_s", st.eval.prefill_s, 0, 60);
+  v.number("eval", "cs_speed", st.eval.cs_speed, 0.5, 40);
+  v.integer("eval", "max_attempts", st.eval.max_attempts, 1, 100);
 }
 
 // Reads each field from its table; tables are opened once, and checked for unknown keys

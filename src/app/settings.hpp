@@ -71,6 +71,54 @@ struct CollectSettings {
   NoiseSettings noise;
 };
 
+// Speed controller of every agent with a target-speed output (control/pid.hpp).
+struct ControlSettings {
+  double kp = 4.0;              // 1/s: m/s^2 asked per m/s of speed error
+  double ki = 0.5;              // 1/s^2
+  double kd = 0.0;              // dimensionless
+  double integral_limit = 2.0;  // m, anti-windup bound of the integrated error
+  double stop_speed = 0.1;      // m/s: a target and a speed both below it mean "hold still"
+  double hold_brake = 0.3;      // brake held while standing
+};
+
+// The network of the behaviour-cloning methods (bc-so, bc-oh) and what it sees.
+struct ModelSettings {
+  std::string backbone = "small";  // small (CPU-sized CNN) | resnet34 (the seeds', GPU)
+  int history = 4;                 // frames stacked by bc-oh (bc-so: 1)
+  int history_stride = 2;          // simulation steps between stacked frames
+  std::string action_head = "throttle_brake";  // throttle_brake | target_speed
+  bool speed_input = false;        // false: the measured speed is zeroed (the seeds' POMDP)
+  int features = 256;              // width of the backbone's output and the branches
+  double speed_loss_weight = 0.05; // auxiliary speed-prediction head
+  double dropout = 0.2;
+};
+
+struct TrainSettings {
+  int epochs = 8;
+  int batch_size = 64;
+  double lr = 2e-4;
+  std::string loss = "l1";       // l1 | l2
+  double val_fraction = 0.1;     // of the episodes, held out for validation
+  int lr_patience = 1;           // epochs without a better validation loss before a decay
+  double lr_decay = 0.5;
+  double lr_min = 1e-6;
+  uint64_t seed = 0;
+  int threads = 2;               // torch intra-op threads
+  std::string device = "cpu";    // cpu | cuda | auto
+  long max_samples = 0;          // 0: every sample of the data folder
+  std::string out = "runs/quickstart/train";
+};
+
+struct EvalSettings {
+  std::string suite = "quickstart";  // a built-in suite name or a suite file
+  int trials = 0;                    // 0: the suite's own number of trials
+  int workers = 2;
+  std::string out = "runs/quickstart/eval";
+  double prefill_s = 1.0;   // s the ego is held still while the agent's history fills
+  double cs_speed = 8.0;    // m/s of the constant-speed baseline
+  int max_attempts = 3;     // an episode whose worker or SUMO crashed is run again this often
+};
+
 struct Settings {
   std::string source = "(built-in defaults)";  // where they came from
   WorldSettings world;
@@ -78,6 +126,10 @@ struct Settings {
   BevConfig bev;
   ExpertSettings expert;
   CollectSettings collect;
+  ControlSettings control;
+  ModelSettings model;
+  TrainSettings train;
+  EvalSettings eval;
 };
 
 Settings load_settings(const std::string& path);  // throws ConfigError

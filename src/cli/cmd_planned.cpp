@@ -9,10 +9,7 @@ void add_planned(CLI::App& app) {
     const char* what;
   };
   static const Planned planned[] = {
-      {"train", "train a policy (bc-so, bc-oh, cim, ...) on recorded episodes"},
-      {"eval", "evaluate an agent closed-loop on a benchmark suite"},
       {"granger", "Granger-causality tests of candidate variables against a target"},
-      {"report", "comparison tables of evaluation runs"},
   };
   for (const Planned& p : planned) {
     CLI::App* sub = app.add_subcommand(p.name, std::string(p.what) + " (not in this version)");

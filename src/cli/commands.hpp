@@ -7,8 +7,12 @@ namespace cd::cli {
 
 void add_town(CLI::App& app);
 void add_collect(CLI::App& app);
+void add_train(CLI::App& app);
+void add_eval(CLI::App& app);
+void add_probe(CLI::App& app);
+void add_report(CLI::App& app);
 void add_bench(CLI::App& app);
 void add_quickstart(CLI::App& app);
-void add_planned(CLI::App& app);  // train, eval, granger, report: not in this version yet
+void add_planned(CLI::App& app);  // granger: not in this version yet
 
 }  // namespace cd::cli

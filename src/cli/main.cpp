@@ -16,6 +16,10 @@ int main(int argc, char** argv) {
   cd::cli::add_quickstart(app);
   cd::cli::add_town(app);
   cd::cli::add_collect(app);
+  cd::cli::add_train(app);
+  cd::cli::add_eval(app);
+  cd::cli::add_probe(app);
+  cd::cli::add_report(app);
   cd::cli::add_bench(app);
   cd::cli::add_planned(app);
   try {

@@ -1,0 +1,52 @@
+#pragma once
+// What drives the ego in closed loop: the expert, the constant-speed baseline, or a learned
+// policy. The benchmark runner owns the observation history and hands each agent the frames
+// it asked for (history() frames, history_stride() steps apart, oldest first), always real
+// frames of the episode (SPEC section 1), never one frame repeated.
+#include <cmath>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "app/settings.hpp"
+#include "world/ego_model.hpp"
+
+namespace cd {
+
+class World;
+
+struct Observation {
+  std::vector<const uint8_t*> frames;  // oldest first, last = current; each C*H*W bytes, 0/255
+  int channels = 0, height = 0, width = 0;
+  double speed = 0;  // m/s measured; learned agents zero it unless their config says otherwise
+  int command = 0;   // cd::Command at the next junction
+};
+
+class Agent {
+ public:
+  virtual ~Agent() = default;
+  virtual std::string name() const = 0;
+  virtual int history() const { return 1; }         // frames in Observation::frames
+  virtual int history_stride() const { return 1; }  // simulation steps between them
+  virtual void begin_episode() {}
+  // The control for this step. `world` is there for the privileged agents (expert, cs);
+  // learned agents must use `obs` only.
+  virtual Control act(const Observation& obs, const World& world) = 0;
+  // The target speed behind the last act() (NaN when the agent outputs throttle/brake).
+  virtual double last_target_speed() const { return std::nan(""); }
+};
+
+// Agents by name: expert, cs, and the learned methods (which need a checkpoint folder).
+// Throws ConfigError for an unknown name or a checkpoint of another method.
+std::unique_ptr<Agent> make_agent(const std::string& name, const std::string& checkpoint,
+                                  const Settings& settings);
+
+// Names make_agent accepts, and whether each needs a checkpoint.
+struct AgentKind {
+  std::string name;
+  bool learned = false;
+};
+const std::vector<AgentKind>& agent_kinds();
+
+}  // namespace cd
