@@ -29,6 +29,7 @@ class Agent {
   virtual std::string name() const = 0;
   virtual int history() const { return 1; }         // frames in Observation::frames
   virtual int history_stride() const { return 1; }  // simulation steps between them
+  virtual bool uses_frames() const { return true; }  // false: the runner renders nothing
   virtual void begin_episode() {}
   // The control for this step. `world` is there for the privileged agents (expert, cs);
   // learned agents must use `obs` only.

@@ -16,6 +16,7 @@ class ExpertAgent : public Agent {
  public:
   explicit ExpertAgent(const Settings& s) : expert_(s.expert) {}
   std::string name() const override { return "expert"; }
+  bool uses_frames() const override { return false; }
   Control act(const Observation&, const World& world) override { return expert_.act(world); }
 
  private:
@@ -29,6 +30,7 @@ class ConstantSpeedAgent : public Agent {
   explicit ConstantSpeedAgent(const Settings& s)
       : speed_(s.eval.cs_speed), pid_(s.control, EgoModel(s.ego), s.world.dt) {}
   std::string name() const override { return "cs"; }
+  bool uses_frames() const override { return false; }
   void begin_episode() override { pid_.reset(); }
   Control act(const Observation& obs, const World&) override {
     return pid_.control(speed_, obs.speed);

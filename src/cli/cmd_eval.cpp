@@ -1,10 +1,68 @@
-// PLACEHOLDER (owner: me) — replaced by the real 'eval' subcommand.
+#include <cstdio>
+
+#include <nlohmann/json.hpp>
+
+#include "bench/runner.hpp"
 #include "cli/commands.hpp"
+#include "cli/common.hpp"
 #include "core/error.hpp"
+
 namespace cd::cli {
-void add_eval(CLI::App& app) {
-  auto* sub = app.add_subcommand("eval", "(in progress)");
-  sub->allow_extras();
-  sub->callback([] { throw Error("'eval' is not implemented yet"); });
+
+namespace {
+
+struct EvalArgs {
+  std::string config, agent, checkpoint, suite, out, label;
+  int workers = 0, trials = 0;
+  bool list = false, quiet = false;
+};
+
+void list_suites() {
+  std::printf("built-in suites:\n");
+  for (const SuiteRecipe& r : builtin_suite_recipes()) {
+    Suite s = load_suite(r.name);
+    std::printf("  %-16s %-7s %-8s %3zu tasks x %d trials  %s\n", s.name.c_str(), s.town.c_str(),
+                s.traffic.c_str(), s.tasks.size(), s.trials, s.description.c_str());
+  }
+  std::printf("agents:");
+  for (const AgentKind& k : agent_kinds())
+    std::printf(" %s%s", k.name.c_str(), k.learned ? " (--checkpoint)" : "");
+  std::printf("\n");
 }
+
+}  // namespace
+
+void add_eval(CLI::App& app) {
+  auto a = std::make_shared<EvalArgs>();
+  CLI::App* sub = app.add_subcommand("eval", "evaluate an agent closed-loop on a benchmark suite");
+  sub->add_option("--config,-c", a->config, "TOML config (default: built-in quickstart)");
+  sub->add_option("--agent", a->agent, "expert | cs | bc-so | bc-oh");
+  sub->add_option("--checkpoint", a->checkpoint, "training output folder of a learned agent");
+  sub->add_option("--suite", a->suite, "built-in suite name or suite file (eval.suite)");
+  sub->add_option("--workers,-j", a->workers, "worker processes (eval.workers)")
+      ->check(CLI::PositiveNumber);
+  sub->add_option("--trials", a->trials, "trials per task (default: the suite's)")
+      ->check(CLI::PositiveNumber);
+  sub->add_option("--out,-o", a->out, "output folder (eval.out); a rerun resumes");
+  sub->add_option("--label", a->label, "row name in tables (default: the agent name)");
+  sub->add_flag("--list-suites", a->list, "list the built-in suites and agents");
+  sub->add_flag("--quiet,-q", a->quiet, "no progress output");
+  sub->callback([a] {
+    if (a->list) return list_suites();
+    if (a->agent.empty()) throw ConfigError("eval needs --agent NAME (see --list-suites)");
+    Settings s = settings_from(a->config);
+    if (!a->suite.empty()) s.eval.suite = a->suite;
+    if (a->workers > 0) s.eval.workers = a->workers;
+    if (a->trials > 0) s.eval.trials = a->trials;
+    if (!a->out.empty()) s.eval.out = a->out;
+    EvalRequest req{a->agent, a->checkpoint, a->label, a->quiet};
+    EvalReport r = run_eval(s, req);
+    std::printf("%s", results_table(r.results).c_str());
+    std::printf("results: %s/results.json (%d episodes run now", s.eval.out.c_str(), r.run_now);
+    if (r.run_now > 0 && r.seconds > 0)
+      std::printf(", %ld steps in %.1f s, %.0f steps/s", r.steps, r.seconds, r.steps / r.seconds);
+    std::printf(")\n");
+  });
+}
+
 }  // namespace cd::cli

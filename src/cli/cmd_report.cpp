@@ -1,10 +1,63 @@
-// PLACEHOLDER (owner: report) — replaced by the real 'report' subcommand.
+// `causaldrive report RUN_DIR... [--metrics SETS] [--csv FILE] [--markdown FILE]`: comparison
+// tables over evaluation runs (see bench/report.hpp).
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "bench/report.hpp"
 #include "cli/commands.hpp"
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
+
 namespace cd::cli {
-void add_report(CLI::App& app) {
-  auto* sub = app.add_subcommand("report", "(in progress)");
-  sub->allow_extras();
-  sub->callback([] { throw Error("'report' is not implemented yet"); });
+
+namespace {
+
+struct ReportArgs {
+  std::vector<std::string> run_dirs;
+  std::string metrics = "all", csv, markdown;
+};
+
+// write_file_atomic, with filesystem errors (e.g. a parent that is a file) as IoError.
+void write_output(const std::string& option, const std::string& path, const std::string& text) {
+  try {
+    write_file_atomic(path, text);
+  } catch (const std::filesystem::filesystem_error& e) {
+    throw IoError(option + ": cannot write " + path + ": " + e.code().message());
+  }
 }
+
+}  // namespace
+
+void add_report(CLI::App& app) {
+  auto args = std::make_shared<ReportArgs>();
+  CLI::App* sub = app.add_subcommand(
+      "report", "comparison tables (mean ± sd over seeds) from evaluation runs' results.json");
+  sub->add_option("run_dirs", args->run_dirs,
+                  "evaluation output folders holding results.json, or folders under which they "
+                  "lie (searched recursively)");
+  sub->add_option("--metrics,-m", args->metrics,
+                  "error | outcomes | stopgo | all, or a comma-separated list (default: all)");
+  sub->add_option("--csv", args->csv, "also write a long-format CSV (label,suite,metric,mean,std,n)");
+  sub->add_option("--markdown", args->markdown, "also write the printed Markdown to this file");
+  sub->callback([args] {
+    // Validated here rather than by CLI11 so that every user error is one line and exit code 1.
+    std::vector<MetricSet> sets = parse_metric_sets(args->metrics);
+    if (args->run_dirs.empty())
+      throw ConfigError("report: give at least one RUN_DIR (an output folder of `causaldrive "
+                        "eval`, or a folder holding several)");
+    std::vector<RunResult> runs;
+    for (const std::string& file : find_result_files(args->run_dirs))
+      runs.push_back(load_result(file));
+    ReportTable table = build_report(runs);
+    std::string markdown = render_markdown(table, sets);
+    if (!args->csv.empty()) write_output("--csv", args->csv, render_csv(table, sets));
+    if (!args->markdown.empty()) write_output("--markdown", args->markdown, markdown);
+    std::fwrite(markdown.data(), 1, markdown.size(), stdout);
+    std::fflush(stdout);
+  });
+}
+
 }  // namespace cd::cli

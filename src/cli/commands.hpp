@@ -9,6 +9,7 @@ void add_town(CLI::App& app);
 void add_collect(CLI::App& app);
 void add_train(CLI::App& app);
 void add_eval(CLI::App& app);
+void add_suite(CLI::App& app);
 void add_probe(CLI::App& app);
 void add_report(CLI::App& app);
 void add_bench(CLI::App& app);

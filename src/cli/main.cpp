@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
   cd::cli::add_collect(app);
   cd::cli::add_train(app);
   cd::cli::add_eval(app);
+  cd::cli::add_suite(app);
   cd::cli::add_probe(app);
   cd::cli::add_report(app);
   cd::cli::add_bench(app);

@@ -1,17 +1,9 @@
 #include "collect/collect.hpp"
 
-#include <sys/prctl.h>
-#include <sys/wait.h>
-
-#include <csignal>
-#include <unistd.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
-#include <map>
 #include <memory>
 #include <sstream>
 
@@ -20,6 +12,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/progress.hpp"
+#include "core/worker_pool.hpp"
 #include "data/h5_episode.hpp"
 #include "world/town.hpp"
 
@@ -51,131 +44,6 @@ void remove_stale_temporaries(const std::string& dir) {
   }
 }
 
-// Runs in a worker: loads the network once, then records each episode in a fork of itself,
-// so that every episode starts from the same process state (SUMO keeps some state across
-// reloads) and a crash costs one episode, not the worker.
-[[noreturn]] void worker_main(const Settings& settings, const std::vector<int>& indices,
-                              const CollectOptions& options, int fd) {
-  auto report = [fd](const std::string& line) {
-    std::string l = line + "\n";
-    ssize_t ignored = write(fd, l.data(), l.size());
-    (void)ignored;
-  };
-  auto fail = [&](int index, std::string msg) {
-    std::replace(msg.begin(), msg.end(), '\n', ' ');
-    report("error " + std::to_string(index) + " " + msg);
-  };
-  std::unique_ptr<World> world;
-  try {
-    world = std::make_unique<World>(settings);
-  } catch (const std::exception& e) {
-    fail(indices.empty() ? -1 : indices.front(), e.what());
-    _exit(1);
-  }
-  int failures = 0;
-  for (int i : indices) {
-    std::fflush(nullptr);
-    pid_t pid = fork();
-    if (pid < 0) {
-      fail(i, "cannot fork: " + std::string(std::strerror(errno)));
-      _exit(1);
-    }
-    if (pid == 0) {
-      prctl(PR_SET_PDEATHSIG, SIGKILL);
-      try {
-        ExpertRecorder recorder(*world, settings);
-        EpisodeData data;
-        EpisodeMeta meta;
-        std::string png = options.png_dir.empty()
-                              ? ""
-                              : options.png_dir + "/" + fs::path(episode_file_name(i)).stem().string();
-        EpisodeSummary s = recorder.run(i, episode_seed(settings.collect.seed, i), data, meta, png);
-        write_episode(settings.collect.out + "/" + episode_file_name(i), meta, data);
-        report("done " + std::to_string(i) + " " + std::to_string(s.frames) + " " + s.outcome);
-        _exit(0);
-      } catch (const std::exception& e) {
-        fail(i, e.what());
-        _exit(1);
-      }
-    }
-    int status = 0;
-    waitpid(pid, &status, 0);
-    if (WIFSIGNALED(status)) fail(i, "crashed with signal " + std::to_string(WTERMSIG(status)));
-    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) ++failures;
-  }
-  close(fd);
-  _exit(failures == 0 ? 0 : 1);
-}
-
-struct WorkerRun {
-  std::vector<int> failed;       // episodes not recorded
-  std::string first_error;
-};
-
-WorkerRun run_workers(const Settings& settings, const std::vector<int>& todo,
-                      const CollectOptions& options, Progress* progress, long* frames) {
-  int k = std::max(1, std::min<int>(settings.collect.workers, static_cast<int>(todo.size())));
-  int fds[2];
-  if (pipe(fds) != 0) throw IoError("cannot create a pipe for the workers");
-  std::fflush(nullptr);
-  std::vector<pid_t> pids;
-  const pid_t parent = getpid();
-  for (int w = 0; w < k; ++w) {
-    std::vector<int> mine;
-    for (size_t j = w; j < todo.size(); j += k) mine.push_back(todo[j]);
-    pid_t pid = fork();
-    if (pid < 0) throw Error("cannot start a worker process: " + std::string(std::strerror(errno)));
-    if (pid == 0) {
-      // A killed parent takes its workers along: no orphan keeps writing into the folder.
-      prctl(PR_SET_PDEATHSIG, SIGKILL);
-      if (getppid() != parent) _exit(1);
-      close(fds[0]);
-      worker_main(settings, mine, options, fds[1]);
-    }
-    pids.push_back(pid);
-  }
-  close(fds[1]);
-
-  WorkerRun result;
-  std::map<int, bool> done;
-  std::string pending;
-  char buf[4096];
-  ssize_t n;
-  while ((n = read(fds[0], buf, sizeof buf)) > 0) {
-    pending.append(buf, n);
-    size_t nl;
-    while ((nl = pending.find('\n')) != std::string::npos) {
-      std::istringstream line(pending.substr(0, nl));
-      pending.erase(0, nl + 1);
-      std::string kind;
-      int idx;
-      line >> kind >> idx;
-      if (kind == "done") {
-        long f;
-        std::string outcome;
-        line >> f >> outcome;
-        *frames += f;
-        done[idx] = true;
-        if (progress) progress->advance(1, "episode " + std::to_string(idx) + ": " + outcome);
-      } else if (kind == "error" && result.first_error.empty()) {
-        std::string rest;
-        std::getline(line, rest);
-        result.first_error = "episode " + std::to_string(idx) + ":" + rest;
-      }
-    }
-  }
-  close(fds[0]);
-  for (pid_t pid : pids) {
-    int status = 0;
-    waitpid(pid, &status, 0);
-    if (WIFSIGNALED(status) && result.first_error.empty())
-      result.first_error = "a worker was killed by signal " + std::to_string(WTERMSIG(status));
-  }
-  for (int i : todo)
-    if (!done.count(i)) result.failed.push_back(i);
-  return result;
-}
-
 }  // namespace
 
 std::string episode_file_name(int index) {
@@ -203,8 +71,30 @@ CollectReport collect(const Settings& settings, const CollectOptions& options) {
   if (!options.quiet) progress = std::make_unique<Progress>("collect", total, total - (long)todo.size());
   std::vector<int> remaining = todo;
   std::string error;
+  // Each worker loads the network once; each episode runs in a fresh fork of it.
+  std::unique_ptr<World> world;
+  auto setup = [&] { world = std::make_unique<World>(settings); };
+  auto job = [&](int i) {
+    ExpertRecorder recorder(*world, settings);
+    EpisodeData data;
+    EpisodeMeta meta;
+    std::string png = options.png_dir.empty()
+                          ? ""
+                          : options.png_dir + "/" + fs::path(episode_file_name(i)).stem().string();
+    EpisodeSummary s = recorder.run(i, episode_seed(settings.collect.seed, i), data, meta, png);
+    write_episode(out + "/" + episode_file_name(i), meta, data);
+    return std::to_string(s.frames) + " " + s.outcome;
+  };
+  auto on_done = [&](int i, const std::string& note) {
+    std::istringstream in(note);
+    long f = 0;
+    std::string outcome;
+    in >> f >> outcome;
+    report.frames += f;
+    if (progress) progress->advance(1, "episode " + std::to_string(i) + ": " + outcome);
+  };
   for (int attempt = 0; attempt < kMaxAttempts && !remaining.empty(); ++attempt) {
-    WorkerRun run = run_workers(settings, remaining, options, progress.get(), &report.frames);
+    PoolReport run = run_worker_pool(settings.collect.workers, remaining, setup, job, on_done);
     if (!run.first_error.empty()) error = run.first_error;
     remaining = run.failed;
   }

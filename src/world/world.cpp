@@ -20,6 +20,10 @@ namespace {
 const std::string kEgo = "ego";
 const std::string kEgoType = "cd_ego";
 const std::string kEgoRoute = "cd_ego_route";
+const std::string kLeader = "leader";  // the leader scenario's car
+constexpr double kLeaderLength = 5.0;  // m, SUMO's default vehicle type
+constexpr double kRedStartGap = 1.5;
+constexpr double kRedWaitAllowance = 60.0;  // s added to a red_light task's timeout   // m from the ego's front to the stop line (red_light)
 constexpr double kPedSize = 0.5;        // m, pedestrians are drawn and checked as squares
 constexpr double kPathHorizon = 80.0;   // m of route ahead that the checks look at
 constexpr double kTopUpPeriod = 1.0;    // s between background refills
@@ -302,8 +306,77 @@ Task World::sample_task(uint64_t seed, double min_len, double max_len) {
   return best;
 }
 
+const std::vector<std::string>& scenario_names() {
+  static const std::vector<std::string> names = {"route", "red_light", "leader"};
+  return names;
+}
+
+std::string World::first_via(const Task& task) const {
+  if (task.route.size() < 2 || task.start_lane < 0) return "";
+  auto plan = lane_plan(task.route);
+  const std::string lane = task.route[0] + "_" + std::to_string(task.start_lane);
+  return next_lane(lane, task.route[1], &plan[1]);
+}
+
+Task World::sample_scenario_task(uint64_t seed, const std::string& scenario, double min_len,
+                                 double max_len) {
+  Rng rng(seed);
+  for (int attempt = 0; attempt < 2000; ++attempt) {
+    Task t = sample_task(rng.next() >> 1, min_len, max_len);
+    if (t.route_length < min_len || t.route_length > max_len) continue;
+    const double first_len = edge_lane_.at(t.route.front())->length;
+    const double old_start = t.start_pos;
+    if (scenario == "route") {
+      // the route as sampled
+    } else if (scenario == "red_light") {
+      const ViaInfo* vi = via_info(first_via(t));
+      if (!vi || vi->tls.empty() || first_len < 20) continue;
+      t.start_pos = first_len - kRedStartGap;
+    } else if (scenario == "leader") {
+      t.leader_gap = rng.uniform(3.0, 4.5);
+      t.leader_hold_s = rng.uniform(4.0, 8.0);
+      // Room for the ego's history behind it and for the leader before the junction.
+      const double need = t.leader_gap + kLeaderLength + 15.0;
+      if (first_len < need + 10.0) continue;
+      t.start_pos = std::min(std::max(10.0, first_len * 0.3), first_len - need);
+    } else {
+      throw SimError("unknown scenario '" + scenario + "' (known: route, red_light, leader)");
+    }
+    t.scenario = scenario;
+    t.route_length += old_start - t.start_pos;
+    if (t.route_length < min_len || t.route_length > max_len) continue;
+    t.timeout_s = t.route_length / (5.0 / 3.6) + 20.0;
+    // The wait at the red light is part of the task, not of the route: up to a full red
+    // phase of netgenerate's programs (under a minute) is added.
+    if (scenario == "red_light") t.timeout_s += kRedWaitAllowance;
+    return t;
+  }
+  throw SimError(net_path_ + ": no place for a '" + scenario + "' task on this network");
+}
+
+void World::wait_for_red_onset() {
+  const ViaInfo* vi = via_info(first_via(task_));
+  if (!vi || vi->tls.empty())
+    throw SimError("red_light task: the route's first link has no traffic light");
+  const int max_steps = static_cast<int>(std::lround(600.0 / settings_.world.dt));
+  sumo_call("simulation failed while waiting for red", [&] {
+    bool was_red = true;  // a red already on at the start is not an onset
+    for (int i = 0; i < max_steps; ++i) {
+      char st = libsumo::TrafficLight::getRedYellowGreenState(vi->tls).at(vi->tls_index);
+      bool red = st == 'r' || st == 'R';
+      if (red && !was_red) return;
+      was_red = red;
+      advance();
+    }
+    throw SimError("red_light task: the light never turned red in 600 s");
+  });
+}
+
 void World::reset(const Task& task) {
   if (task.route.empty()) throw SimError("task has an empty route");
+  if (std::find(scenario_names().begin(), scenario_names().end(), task.scenario) ==
+      scenario_names().end())
+    throw SimError("task has an unknown scenario '" + task.scenario + "'");
   task_ = task;
   plan_ = lane_plan(task_.route);
   if (task_.timeout_s <= 0) task_.timeout_s = task_.route_length / (5.0 / 3.6) + 20.0;
@@ -318,6 +391,7 @@ void World::reset(const Task& task) {
   prev_link_state_ = 0;
   prev_link_distance_ = 1e9;
   ego_present_ = false;
+  leader_held_ = false;
   ego_ = {};
 
   sumo_call("cannot start traffic", [&] {
@@ -338,6 +412,7 @@ void World::reset(const Task& task) {
   sumo_call("simulation failed during warm-up", [&] {
     for (int i = 0; i < warm_steps; ++i) advance();
   });
+  if (task_.scenario == "red_light") wait_for_red_onset();
   insert_ego();
   route_lanes_ = route_lane_sequence();
   renderer_->set_route(route_lanes_);
@@ -400,22 +475,34 @@ void World::top_up_background() {
 
 void World::insert_ego() {
   const std::string& first = task_.route.front();
+  const bool leader = task_.scenario == "leader";
+  const double clear_ahead = leader ? task_.leader_gap + kLeaderLength + 20 : 20;
   auto clear_start = [&] {
     for (const std::string& v : libsumo::Edge::getLastStepVehicleIDs(first)) {
       double p = libsumo::Vehicle::getLanePosition(v);
-      if (v != kEgo && p > task_.start_pos - 60 && p < task_.start_pos + 20)
+      if (v != kEgo && v != kLeader && p > task_.start_pos - 60 && p < task_.start_pos + clear_ahead)
         libsumo::Vehicle::remove(v);
     }
   };
   sumo_call("cannot insert the ego vehicle", [&] {
     clear_start();
+    if (leader) {
+      // The leader drives the ego's route, held still until leader_hold_s.
+      char lp[32];
+      std::snprintf(lp, sizeof lp, "%.2f", task_.start_pos + task_.leader_gap + kLeaderLength);
+      libsumo::Vehicle::add(kLeader, kEgoRoute, "DEFAULT_VEHTYPE", "now",
+                            std::to_string(std::max(0, task_.start_lane)), lp, "0");
+      libsumo::Vehicle::setSpeed(kLeader, 0);
+      leader_held_ = true;
+    }
     char p[32];
     std::snprintf(p, sizeof p, "%.2f", task_.start_pos);
     const std::string lane = task_.start_lane >= 0 ? std::to_string(task_.start_lane) : "best";
     libsumo::Vehicle::add(kEgo, kEgoRoute, kEgoType, "now", lane, p, "0", "current", "max");
     for (int i = 0; i < 50; ++i) {
       advance();
-      if (contains(libsumo::Vehicle::getIDList(), kEgo)) {
+      if (contains(libsumo::Vehicle::getIDList(), kEgo) &&
+          (!leader || contains(libsumo::Vehicle::getIDList(), kLeader))) {
         libsumo::Vehicle::setSpeedMode(kEgo, 0);
         libsumo::Vehicle::setLaneChangeMode(kEgo, 0);
         libsumo::Vehicle::setSpeed(kEgo, 0);
@@ -469,6 +556,13 @@ StepResult World::step(const Control& c) {
   double v0 = ego_.speed;
   double v1 = ego_model_.next_speed(c, v0, settings_.world.dt);
   bool present = true;
+  if (leader_held_ && ego_.time >= task_.leader_hold_s) {
+    leader_held_ = false;
+    // SUMO's driver takes over (it may have left already: then there is nothing to do).
+    sumo_call("cannot release the leader", [&] {
+      if (contains(libsumo::Vehicle::getIDList(), kLeader)) libsumo::Vehicle::setSpeed(kLeader, -1);
+    });
+  }
   sumo_call("simulation step failed", [&] {
     libsumo::Vehicle::setSpeed(kEgo, v1);
     advance();

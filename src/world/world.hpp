@@ -28,7 +28,19 @@ struct Task {
   uint64_t traffic_seed = 0;
   double route_length = 0;         // m from start to goal along the route
   double timeout_s = 0;            // route at 5 km/h + 20 s unless set otherwise
+  // How the episode starts (SPEC section 5, interaction suites):
+  //   route     the ego starts stopped on its route, traffic around;
+  //   red_light the ego starts stopped first in line at the stop line of a light that has
+  //             just turned red;
+  //   leader    the ego starts stopped leader_gap m behind a stopped car on its lane that
+  //             drives off (SUMO's driver) leader_hold_s after the ego entered.
+  std::string scenario = "route";
+  double leader_gap = 0;
+  double leader_hold_s = 0;
 };
+
+// Scenario names of Task::scenario.
+const std::vector<std::string>& scenario_names();
 
 enum class Outcome { Running, Success, Collision, Timeout };
 const char* outcome_name(Outcome o);
@@ -95,6 +107,10 @@ class World {
 
   // A random task on this network: route length within [min_len, max_len] where possible.
   Task sample_task(uint64_t seed, double min_len, double max_len);
+  // A random task of a scenario (see Task). Throws SimError when the network has no place
+  // for it (no traffic light for red_light, no edge long enough for leader).
+  Task sample_scenario_task(uint64_t seed, const std::string& scenario, double min_len,
+                            double max_len);
 
   // Reloads the simulation, spawns and warms up background traffic, inserts the ego stopped
   // at the route start. Throws SimError when SUMO fails.
@@ -157,6 +173,10 @@ class World {
   void top_up_background();
   bool add_background_car(const std::string& id);
   void insert_ego();
+  // red_light: runs the simulation until the light of the ego's first link turns red.
+  void wait_for_red_onset();
+  // The first link of a task's route from its start lane: its via lane ("" if none).
+  std::string first_via(const Task& task) const;
   void advance();  // one SUMO step plus the periodic background refill
   void refresh();  // reads SUMO state, recomputes actors, path, truth, command
   void compute_path();
@@ -217,6 +237,7 @@ class World {
   char prev_link_state_ = 0;
   double prev_link_distance_ = 1e9;
   bool ego_present_ = false;
+  bool leader_held_ = false;  // leader scenario: the leader still waits
   Outcome outcome_ = Outcome::Running;
 };
 

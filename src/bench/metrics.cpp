@@ -1,0 +1,174 @@
+#include "bench/metrics.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include <nlohmann/json.hpp>
+
+#include "core/error.hpp"
+
+namespace cd {
+
+double route_timeout_s(double route_length_m) { return route_length_m / (5.0 / 3.6) + 20.0; }
+
+bool is_inertia(const std::vector<char>& stopped, const std::vector<char>& path_free, double dt) {
+  const size_t n = std::min(stopped.size(), path_free.size());
+  const size_t need = static_cast<size_t>(std::ceil(kInertiaSpan / dt - 1e-9));
+  if (need == 0 || n < need) return false;
+  for (size_t i = n - need; i < n; ++i)
+    if (!stopped[i] || !path_free[i]) return false;
+  return true;
+}
+
+void StopGoTracker::observe(double speed, bool path_free) {
+  const double t = static_cast<double>(++step_) * dt_;
+  const bool stopped = speed < kStoppedSpeed;
+  if (open_) {
+    const double elapsed = t - cur_.time_s;
+    if (!stopped) {
+      cur_.delay_s = elapsed;
+      cur_.started = true;
+      cur_.stall = elapsed > kStallDelay;
+      events_.push_back(cur_);
+      open_ = false;
+    } else if (!path_free && elapsed <= kStallDelay) {
+      open_ = false;  // blocked again before it should have gone: not an event
+    }
+  } else if (stopped && path_free && (first_ || !prev_free_)) {
+    open_ = true;
+    cur_ = {};
+    cur_.time_s = t;
+    cur_.kind = first_ ? "start" : "freed";
+  }
+  first_ = false;
+  prev_free_ = path_free;
+}
+
+void StopGoTracker::finish() {
+  if (!open_) return;
+  const double t = static_cast<double>(step_) * dt_;
+  cur_.delay_s = t - cur_.time_s;
+  cur_.started = false;
+  // An event cut short by the end of the episode within kStallDelay says nothing.
+  if (cur_.delay_s > kStallDelay) {
+    cur_.stall = true;
+    events_.push_back(cur_);
+  }
+  open_ = false;
+}
+
+double EpisodeResult::route_completion() const {
+  return route_length_m > 0 ? std::clamp(distance_m / route_length_m, 0.0, 1.0) : 0.0;
+}
+
+double EpisodeResult::mean_speed() const { return duration_s > 0 ? distance_m / duration_s : 0.0; }
+
+nlohmann::json episode_to_json(const EpisodeResult& e) {
+  nlohmann::json ev = nlohmann::json::array();
+  for (const StopGoEvent& s : e.events)
+    ev.push_back({{"time_s", s.time_s}, {"delay_s", s.delay_s}, {"started", s.started},
+                  {"stall", s.stall}, {"kind", s.kind}});
+  nlohmann::json j = {{"index", e.index},
+                      {"task", e.task},
+                      {"trial", e.trial},
+                      {"scenario", e.scenario},
+                      {"traffic_seed", e.traffic_seed},
+                      {"outcome", e.outcome},
+                      {"route_length_m", e.route_length_m},
+                      {"distance_m", e.distance_m},
+                      {"route_completion", e.route_completion()},
+                      {"duration_s", e.duration_s},
+                      {"mean_speed", e.mean_speed()},
+                      {"red_light_violations", e.red_light_violations},
+                      {"stop_go_events", ev}};
+  if (!e.collided_with.empty()) j["collided_with"] = e.collided_with;
+  if (!e.failure.empty()) j["failure"] = e.failure;
+  return j;
+}
+
+EpisodeResult episode_from_json(const nlohmann::json& j) {
+  try {
+    EpisodeResult e;
+    e.index = j.at("index").get<int>();
+    e.task = j.at("task").get<int>();
+    e.trial = j.at("trial").get<int>();
+    e.scenario = j.at("scenario").get<std::string>();
+    e.traffic_seed = j.at("traffic_seed").get<uint64_t>();
+    e.outcome = j.at("outcome").get<std::string>();
+    e.route_length_m = j.at("route_length_m").get<double>();
+    e.distance_m = j.at("distance_m").get<double>();
+    e.duration_s = j.at("duration_s").get<double>();
+    e.red_light_violations = j.at("red_light_violations").get<int>();
+    e.collided_with = j.value("collided_with", "");
+    e.failure = j.value("failure", "");
+    for (const auto& s : j.at("stop_go_events")) {
+      StopGoEvent ev;
+      ev.time_s = s.at("time_s").get<double>();
+      ev.delay_s = s.at("delay_s").get<double>();
+      ev.started = s.at("started").get<bool>();
+      ev.stall = s.at("stall").get<bool>();
+      ev.kind = s.at("kind").get<std::string>();
+      e.events.push_back(ev);
+    }
+    return e;
+  } catch (const nlohmann::json::exception& ex) {
+    throw DataError(std::string("malformed episode record: ") + ex.what());
+  }
+}
+
+std::optional<double> quantile(std::vector<double> v, double q) {
+  if (v.empty()) return std::nullopt;
+  std::sort(v.begin(), v.end());
+  const double pos = q * static_cast<double>(v.size() - 1);
+  const size_t lo = static_cast<size_t>(std::floor(pos));
+  const size_t hi = std::min(lo + 1, v.size() - 1);
+  return v[lo] + (v[hi] - v[lo]) * (pos - static_cast<double>(lo));
+}
+
+nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
+  long n = 0, failures = 0, success = 0, collision = 0, inertia = 0, timeout = 0, red = 0;
+  long events = 0, stalls = 0;
+  double km = 0, completion = 0, distance = 0, duration = 0;
+  std::vector<double> delays;
+  for (const EpisodeResult& e : episodes) {
+    if (e.outcome == "infrastructure_failure") {
+      ++failures;
+      continue;
+    }
+    ++n;
+    success += e.outcome == "success";
+    collision += e.outcome == "collision";
+    inertia += e.outcome == "inertia";
+    timeout += e.outcome == "timeout";
+    red += e.red_light_violations;
+    km += e.distance_m / 1000.0;
+    completion += e.route_completion();
+    distance += e.distance_m;
+    duration += e.duration_s;
+    for (const StopGoEvent& s : e.events) {
+      ++events;
+      stalls += s.stall;
+      delays.push_back(s.delay_s);
+    }
+  }
+  auto rate = [n](long k) { return n > 0 ? static_cast<double>(k) / n : 0.0; };
+  auto opt = [](std::optional<double> x) { return x ? nlohmann::json(*x) : nlohmann::json(); };
+  return {{"episodes", n},
+          {"infrastructure_failures", failures},
+          {"success_rate", rate(success)},
+          {"collision_rate", rate(collision)},
+          {"inertia_rate", rate(inertia)},
+          {"timeout_rate", rate(timeout)},
+          {"error_rate", rate(collision + inertia)},
+          {"stop_go_events", events},
+          {"stalls", stalls},
+          {"stall_rate", events > 0 ? static_cast<double>(stalls) / events : 0.0},
+          {"start_delay_median_s", opt(quantile(delays, 0.5))},
+          {"start_delay_p90_s", opt(quantile(delays, 0.9))},
+          {"red_light_violations_per_km", km > 0 ? red / km : 0.0},
+          {"route_completion", n > 0 ? completion / n : 0.0},
+          {"mean_speed", duration > 0 ? distance / duration : 0.0},
+          {"distance_km", km}};
+}
+
+}  // namespace cd

@@ -1,0 +1,83 @@
+#pragma once
+// The benchmark's episode classification and stop-and-go events (SPEC section 5), as pure
+// functions of what happened at each step, so they can be checked on hand-made traces.
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json_fwd.hpp>
+
+namespace cd {
+
+inline constexpr double kStoppedSpeed = 0.5;  // m/s: below it the ego is stopped
+inline constexpr double kInertiaSpan = 15.0;  // s stopped with a free path before a timeout
+inline constexpr double kStallDelay = 5.0;    // s: a longer start delay is a stall
+
+// Timeout of a route: its length at 5 km/h plus 20 s.
+double route_timeout_s(double route_length_m);
+
+// Inertia: a timed-out episode whose ego spent at least the last kInertiaSpan seconds below
+// kStoppedSpeed with a free path at every one of those steps. `stopped` and `path_free` are
+// per step, dt apart, the last entries being the end of the episode.
+bool is_inertia(const std::vector<char>& stopped, const std::vector<char>& path_free, double dt);
+
+struct StopGoEvent {
+  double time_s = 0;     // when the path became free with the ego stopped
+  double delay_s = 0;    // until the ego exceeded kStoppedSpeed; censored at the episode's
+                         // end when it never started (then started == false)
+  bool started = false;
+  bool stall = false;    // delay above kStallDelay or never started
+  std::string kind;      // "start" (free path when the agent took over) or "freed"
+};
+
+// Follows one episode step by step. An event opens when the ego is stopped and its path
+// becomes free (or is free when the agent takes over); it closes when the ego exceeds
+// kStoppedSpeed. If the path is blocked again before the ego started and before kStallDelay,
+// the event is dropped (the ego was right to wait); after kStallDelay it stays a stall.
+class StopGoTracker {
+ public:
+  explicit StopGoTracker(double dt) : dt_(dt) {}
+  // The state after step `step` (0-based, at time (step + 1) * dt after the takeover).
+  void observe(double speed, bool path_free);
+  // Closes an open event at the end of the episode.
+  void finish();
+  const std::vector<StopGoEvent>& events() const { return events_; }
+
+ private:
+  double dt_;
+  long step_ = 0;
+  bool first_ = true;
+  bool prev_free_ = false;
+  bool open_ = false;
+  StopGoEvent cur_;
+  std::vector<StopGoEvent> events_;
+};
+
+// One evaluated episode (results.json "episodes").
+struct EpisodeResult {
+  int index = 0, task = 0, trial = 0;
+  std::string scenario;
+  uint64_t traffic_seed = 0;
+  std::string outcome;           // success | collision | inertia | timeout | infrastructure_failure
+  std::string collided_with;
+  std::string failure;           // what went wrong, for infrastructure failures
+  double route_length_m = 0;
+  double distance_m = 0;
+  double duration_s = 0;
+  int red_light_violations = 0;
+  std::vector<StopGoEvent> events;
+
+  double route_completion() const;
+  double mean_speed() const;
+};
+
+nlohmann::json episode_to_json(const EpisodeResult& e);
+EpisodeResult episode_from_json(const nlohmann::json& j);  // throws DataError
+
+// The summary over episodes (infrastructure failures are counted, never in the rates).
+nlohmann::json summarize(const std::vector<EpisodeResult>& episodes);
+
+// q-quantile (0..1) with linear interpolation; nullopt for no values.
+std::optional<double> quantile(std::vector<double> values, double q);
+
+}  // namespace cd

@@ -1,0 +1,90 @@
+#pragma once
+// Comparison tables over evaluation runs (`causaldrive report`): reads the results.json files
+// that `causaldrive eval` writes, groups them by (label, suite), and renders one table per
+// metric set (rows: labels, column groups: suites) as Markdown, plus a long-format CSV.
+// Several runs with the same (label, suite) are repeated seeds: mean and sample standard
+// deviation (n - 1) over them.
+#include <map>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace cd {
+
+// One results.json, reduced to what the tables need.
+struct RunResult {
+  std::string path;   // the file it came from
+  std::string agent;
+  std::string label;  // `label`, or `agent` when the file has none
+  std::string suite;
+  // Every numeric (or null) entry of `summary`; null is std::nullopt (e.g. no start delay).
+  std::map<std::string, std::optional<double>> summary;
+};
+
+// The results.json files under each folder (recursively, sorted by path; the folder's own one
+// included), folders in the order given. A path that is itself a file is taken as is. The same
+// file reached twice (overlapping folders) is listed once. Throws IoError for a folder that does
+// not exist or holds no results.json.
+std::vector<std::string> find_result_files(const std::vector<std::string>& run_dirs);
+
+// Parses one results.json. Throws DataError naming the file (and the key) when it is not valid
+// JSON, lacks `agent`, `suite` or `summary`, or has a rate outside [0, 1]; IoError when unreadable.
+RunResult load_result(const std::string& path);
+
+// A column of the tables: a key of results.json's `summary`.
+struct Metric {
+  std::string key;     // summary key, also the `metric` column of the CSV
+  std::string header;  // column title in the tables
+  double scale;        // table value = scale * summary value (100 for rates shown in %)
+};
+
+// A named group of metrics, one table each.
+struct MetricSet {
+  std::string name;   // error | outcomes | stopgo
+  std::string title;  // the line printed above its table
+  std::vector<Metric> metrics;
+};
+
+// The known sets, in the order `all` prints them.
+const std::vector<MetricSet>& metric_sets();
+
+// Parses the --metrics value: `error`, `outcomes`, `stopgo`, `all`, or a comma-separated list of
+// them. Throws ConfigError naming the unknown value.
+std::vector<MetricSet> parse_metric_sets(const std::string& spec);
+
+// Mean and sample standard deviation of one metric over the seeds of one (label, suite).
+struct CellStats {
+  int n = 0;                  // runs with a value (null values are left out)
+  double mean = 0;            // valid when n >= 1
+  std::optional<double> std;  // sample standard deviation, when n >= 2
+};
+
+// Mean and sample standard deviation (n - 1); n = 0 for an empty list.
+CellStats mean_std(const std::vector<double>& values);
+
+struct ReportTable {
+  std::vector<std::string> labels;  // rows, in order of first appearance
+  std::vector<std::string> suites;  // column groups, sorted by name
+  // (label, suite) -> the runs of it (one per seed); a pair not present is a missing cell.
+  std::map<std::pair<std::string, std::string>, std::vector<const RunResult*>> cells;
+
+  // Statistics of `key` in one cell; std::nullopt when no run of label on suite exists.
+  std::optional<CellStats> stats(const std::string& label, const std::string& suite,
+                                 const std::string& key) const;
+};
+
+// Groups runs (kept by pointer: `runs` must outlive the table).
+ReportTable build_report(const std::vector<RunResult>& runs);
+
+// Markdown: for each set a title line ("## ..."), a blank line, the table, a blank line.
+// Cells: "mean ± sd" (just the mean for one seed), "–" when the label has no run on the suite,
+// "n/a" when its runs have no value for the metric (null, e.g. no stop-and-go event).
+std::string render_markdown(const ReportTable& table, const std::vector<MetricSet>& sets);
+
+// Long format: header `label,suite,metric,mean,std,n`, one row per present cell and metric
+// (metrics of the sets, each once), values in the units of results.json (rates as fractions),
+// 12 significant digits; std empty when n < 2, mean empty when n = 0.
+std::string render_csv(const ReportTable& table, const std::vector<MetricSet>& sets);
+
+}  // namespace cd

@@ -1,0 +1,290 @@
+#include "bench/runner.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "core/atomic_file.hpp"
+#include "core/error.hpp"
+#include "core/frame_buffer.hpp"
+#include "core/progress.hpp"
+#include "core/worker_pool.hpp"
+#include "world/town.hpp"
+
+namespace fs = std::filesystem;
+
+namespace cd {
+
+namespace {
+
+std::string episode_record_name(int index) {
+  char name[40];
+  std::snprintf(name, sizeof name, "episode_%06d.json", index);
+  return name;
+}
+
+std::string read_all(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// A finished episode's record, or nothing when it is missing or damaged (run again).
+bool load_record(const std::string& path, EpisodeResult* out) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) return false;
+  try {
+    *out = episode_from_json(nlohmann::json::parse(read_all(path)));
+    return true;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+void remove_temporaries(const std::string& dir) {
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.size() > 4 && name.compare(name.size() - 4, 4, ".tmp") == 0) fs::remove(e.path(), ec);
+  }
+}
+
+std::string fmt(const char* f, double x) {
+  char b[64];
+  std::snprintf(b, sizeof b, f, x);
+  return b;
+}
+
+}  // namespace
+
+EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Settings& settings,
+                          long* steps) {
+  const double dt = settings.world.dt;
+  world.reset(task);
+  agent.begin_episode();
+
+  // The history ring: the newest frame last; the agent gets `k` frames `stride` steps apart.
+  const int k = std::max(1, agent.history()), stride = std::max(1, agent.history_stride());
+  const bool frames = agent.uses_frames();
+  const size_t span = static_cast<size_t>((k - 1) * stride + 1);
+  const size_t fb = world.renderer().frame_bytes();
+  FrameBytes ring(frames ? span * fb : 0);
+  size_t rendered = 0;
+  auto push_frame = [&] {
+    if (!frames) return;
+    world.render(ring.data() + (rendered % span) * fb);
+    ++rendered;
+  };
+
+  EpisodeResult r;
+  r.scenario = task.scenario;
+  r.traffic_seed = task.traffic_seed;
+  r.route_length_m = task.route_length;
+  StepResult sr;
+  // The ego stands (brake held) while real frames fill the history: never one frame repeated.
+  const long prefill = std::max<long>(std::lround(settings.eval.prefill_s / dt),
+                                      static_cast<long>(span) - 1);
+  for (long i = 0; i < prefill && sr.outcome == Outcome::Running; ++i) {
+    push_frame();
+    sr = world.step(Control{0.0, 1.0});
+  }
+
+  Observation obs;
+  obs.channels = kBevChannelCount;
+  obs.height = world.renderer().config().height;
+  obs.width = world.renderer().config().width;
+  obs.frames.resize(frames ? k : 0);
+  StopGoTracker tracker(dt);
+  std::vector<char> stopped, free_path;
+  long n = 0;
+  const double t0 = world.time();
+  while (sr.outcome == Outcome::Running) {
+    push_frame();
+    for (int j = 0; j < static_cast<int>(obs.frames.size()); ++j) {
+      size_t idx = rendered - 1 - static_cast<size_t>((k - 1 - j) * stride);
+      obs.frames[j] = ring.data() + (idx % span) * fb;
+    }
+    obs.speed = world.ego().speed;
+    obs.command = world.command();
+    Control c = agent.act(obs, world);
+    sr = world.step(c);
+    ++n;
+    r.red_light_violations += sr.ran_red_light;
+    const double v = world.ego().speed;
+    const bool pf = world.truth().path_free;
+    tracker.observe(v, pf);
+    stopped.push_back(v < kStoppedSpeed);
+    free_path.push_back(pf);
+  }
+  tracker.finish();
+  if (steps) *steps += n;
+
+  r.events = tracker.events();
+  r.duration_s = world.time() - t0;
+  r.distance_m = world.counters().distance;
+  switch (sr.outcome) {
+    case Outcome::Success: r.outcome = "success"; break;
+    case Outcome::Collision:
+      r.outcome = "collision";
+      r.collided_with = sr.collided_with;
+      break;
+    default: r.outcome = is_inertia(stopped, free_path, dt) ? "inertia" : "timeout";
+  }
+  return r;
+}
+
+EvalReport run_eval(const Settings& base, const EvalRequest& req) {
+  Suite suite = load_suite(base.eval.suite);
+  Settings settings = base;
+  settings.world.town = suite.town;
+  settings.world.traffic = suite.traffic;
+  resolve_network(settings.world.town);  // a bad town is one clear error, not one per worker
+  // Fails early (bad name, missing or foreign checkpoint) before any worker starts.
+  std::string agent_name = make_agent(req.agent, req.checkpoint, settings)->name();
+  const int trials = settings.eval.trials > 0 ? settings.eval.trials : suite.trials;
+  const int total = static_cast<int>(suite.tasks.size()) * trials;
+  const std::string label = req.label.empty() ? req.agent : req.label;
+
+  const std::string& out = settings.eval.out;
+  const std::string ep_dir = out + "/episodes";
+  std::error_code ec;
+  fs::create_directories(ep_dir, ec);
+  if (ec) throw IoError("cannot create output folder " + ep_dir + ": " + ec.message());
+  remove_temporaries(out);
+  remove_temporaries(ep_dir);
+
+  // What this folder holds: a rerun must be the same run, or the records would mix.
+  nlohmann::json run = {{"agent", req.agent},     {"label", label},
+                        {"suite", suite.name},    {"town", suite.town},
+                        {"traffic", suite.traffic}, {"trials", trials},
+                        {"checkpoint", req.checkpoint}};
+  const std::string run_path = out + "/run.json";
+  if (fs::exists(run_path)) {
+    nlohmann::json prev;
+    try {
+      prev = nlohmann::json::parse(read_all(run_path));
+    } catch (const std::exception&) {
+      throw DataError(run_path + " is damaged; remove it or use another --out");
+    }
+    for (const char* key : {"agent", "suite", "trials", "checkpoint"})
+      if (prev.value(key, nlohmann::json()) != run[key])
+        throw ConfigError(out + " holds another evaluation (" + key + " " +
+                          prev.value(key, nlohmann::json()).dump() + ", now " + run[key].dump() +
+                          "); use another --out");
+  } else {
+    write_file_atomic(run_path, run.dump(2) + "\n");
+  }
+
+  std::vector<EpisodeResult> results(total);
+  std::vector<int> todo;
+  for (int i = 0; i < total; ++i)
+    if (!load_record(ep_dir + "/" + episode_record_name(i), &results[i])) todo.push_back(i);
+
+  EvalReport report;
+  auto t_start = std::chrono::steady_clock::now();
+  std::unique_ptr<Progress> progress;
+  if (!req.quiet)
+    progress = std::make_unique<Progress>("eval " + label + " on " + suite.name, total,
+                                          total - static_cast<long>(todo.size()));
+  auto task_of = [&](int i) {
+    Task t = suite.tasks[static_cast<size_t>(i / trials)];
+    t.traffic_seed = trial_traffic_seed(t, i % trials);
+    return t;
+  };
+  std::unique_ptr<World> world;
+  auto setup = [&] { world = std::make_unique<World>(settings); };
+  auto job = [&](int i) {
+    // The agent is made after the fork: each episode starts from the same agent state.
+    auto agent = make_agent(req.agent, req.checkpoint, settings);
+    long steps = 0;
+    EpisodeResult r = run_episode(*world, *agent, task_of(i), settings, &steps);
+    r.index = i;
+    r.task = i / trials;
+    r.trial = i % trials;
+    write_file_atomic(ep_dir + "/" + episode_record_name(i), episode_to_json(r).dump() + "\n");
+    return std::to_string(steps) + " " + r.outcome;
+  };
+  auto on_done = [&](int i, const std::string& note) {
+    std::istringstream in(note);
+    long steps = 0;
+    std::string outcome;
+    in >> steps >> outcome;
+    report.steps += steps;
+    ++report.run_now;
+    if (progress) progress->advance(1, "episode " + std::to_string(i) + ": " + outcome);
+  };
+  // A crashed worker or SUMO failure is the infrastructure's fault: run the episode again.
+  std::vector<int> remaining = todo;
+  std::string error;
+  for (int attempt = 0; attempt < settings.eval.max_attempts && !remaining.empty(); ++attempt) {
+    PoolReport pr = run_worker_pool(settings.eval.workers, remaining, setup, job, on_done);
+    if (!pr.first_error.empty()) error = pr.first_error;
+    remaining = pr.failed;
+  }
+  if (progress) progress->finish();
+  nlohmann::json episodes = nlohmann::json::array();
+  for (int i = 0; i < total; ++i) {
+    EpisodeResult& r = results[i];
+    const bool failed = std::find(remaining.begin(), remaining.end(), i) != remaining.end();
+    if (!failed && std::find(todo.begin(), todo.end(), i) != todo.end() &&
+        !load_record(ep_dir + "/" + episode_record_name(i), &r))
+      throw DataError("episode record " + episode_record_name(i) + " is missing after its run");
+    if (failed) {
+      // Never a policy failure: recorded apart, and run again by the next call.
+      Task t = task_of(i);
+      r = EpisodeResult{};
+      r.index = i;
+      r.task = i / trials;
+      r.trial = i % trials;
+      r.scenario = t.scenario;
+      r.traffic_seed = t.traffic_seed;
+      r.route_length_m = t.route_length;
+      r.outcome = "infrastructure_failure";
+      r.failure = error;
+    }
+    episodes.push_back(episode_to_json(r));
+  }
+  report.results = run;
+  report.results["agent_class"] = agent_name;
+  report.results["episodes"] = episodes;
+  report.results["summary"] = summarize(results);
+  write_file_atomic(out + "/results.json", report.results.dump(2) + "\n");
+  report.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  return report;
+}
+
+std::string results_table(const nlohmann::json& res) {
+  const nlohmann::json& s = res.at("summary");
+  auto pct = [&](const char* k) { return fmt("%.1f", 100.0 * s.at(k).get<double>()); };
+  auto sec = [&](const char* k) {
+    return s.at(k).is_null() ? std::string("-") : fmt("%.1f", s.at(k).get<double>());
+  };
+  std::ostringstream o;
+  o << "| agent | suite | episodes | success % | collision % | inertia % | timeout % | error % "
+       "| stop-go events | stall % | start delay median / p90 (s) | red lights / km "
+       "| route completion % | mean speed (m/s) |\n";
+  o << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  o << "| " << res.at("label").get<std::string>() << " | " << res.at("suite").get<std::string>()
+    << " | " << s.at("episodes").get<long>();
+  if (s.at("infrastructure_failures").get<long>() > 0)
+    o << " (+" << s.at("infrastructure_failures").get<long>() << " failed)";
+  o << " | " << pct("success_rate") << " | " << pct("collision_rate") << " | "
+    << pct("inertia_rate") << " | " << pct("timeout_rate") << " | " << pct("error_rate") << " | "
+    << s.at("stop_go_events").get<long>() << " | " << pct("stall_rate") << " | "
+    << sec("start_delay_median_s") << " / " << sec("start_delay_p90_s") << " | "
+    << fmt("%.2f", s.at("red_light_violations_per_km").get<double>()) << " | "
+    << pct("route_completion") << " | " << fmt("%.2f", s.at("mean_speed").get<double>())
+    << " |\n";
+  return o.str();
+}
+
+}  // namespace cd

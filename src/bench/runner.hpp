@@ -1,0 +1,44 @@
+#pragma once
+// `causaldrive eval`: an agent on every task x trial of a suite, episodes in parallel worker
+// processes, one JSON record per finished episode (so a rerun resumes), results.json with
+// the summary (SPEC section 5).
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "agents/agent.hpp"
+#include "bench/metrics.hpp"
+#include "bench/suite.hpp"
+#include "world/world.hpp"
+
+namespace cd {
+
+struct EvalRequest {
+  std::string agent;       // expert | cs | bc-so | bc-oh ...
+  std::string checkpoint;  // for learned agents
+  std::string label;       // row name in tables; default: the agent name
+  bool quiet = false;
+};
+
+struct EvalReport {
+  nlohmann::json results;  // what results.json holds
+  int run_now = 0;         // episodes run by this call (the rest were already recorded)
+  double seconds = 0;
+  long steps = 0;          // agent steps run by this call
+};
+
+// One episode of `agent` on `task` (with the trial's traffic seed already in it) in `world`:
+// holds the ego still for the history prefill, then lets the agent drive until success,
+// collision or timeout, and classifies the outcome.
+EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Settings& settings,
+                          long* steps = nullptr);
+
+// Runs the suite settings.eval.suite into settings.eval.out (settings.world.town and traffic
+// are taken from the suite). Throws ConfigError when the folder holds another run.
+EvalReport run_eval(const Settings& settings, const EvalRequest& request);
+
+// The table printed after a run (Markdown).
+std::string results_table(const nlohmann::json& results);
+
+}  // namespace cd

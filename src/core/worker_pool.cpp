@@ -1,0 +1,134 @@
+#include "core/worker_pool.hpp"
+
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <limits.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <map>
+#include <sstream>
+
+#include "core/error.hpp"
+
+namespace cd {
+
+namespace {
+
+void send_line(int fd, std::string line) {
+  std::replace(line.begin(), line.end(), '\n', ' ');
+  line += "\n";
+  // One write per line: lines of different workers never interleave (PIPE_BUF).
+  ssize_t ignored = write(fd, line.data(), std::min<size_t>(line.size(), PIPE_BUF));
+  (void)ignored;
+}
+
+[[noreturn]] void worker_main(const std::vector<int>& mine, const std::function<void()>& setup,
+                              const std::function<std::string(int)>& job, int fd) {
+  try {
+    setup();
+  } catch (const std::exception& e) {
+    send_line(fd, "error " + std::to_string(mine.empty() ? -1 : mine.front()) + " " + e.what());
+    _exit(1);
+  }
+  int failures = 0;
+  for (int i : mine) {
+    std::fflush(nullptr);
+    pid_t pid = fork();
+    if (pid < 0) {
+      send_line(fd, "error " + std::to_string(i) + " cannot fork: " + std::strerror(errno));
+      _exit(1);
+    }
+    if (pid == 0) {
+      prctl(PR_SET_PDEATHSIG, SIGKILL);
+      try {
+        std::string note = job(i);
+        std::fflush(nullptr);
+        send_line(fd, "done " + std::to_string(i) + " " + note);
+        _exit(0);
+      } catch (const std::exception& e) {
+        send_line(fd, "error " + std::to_string(i) + " " + e.what());
+        _exit(1);
+      }
+    }
+    int status = 0;
+    waitpid(pid, &status, 0);
+    if (WIFSIGNALED(status))
+      send_line(fd, "error " + std::to_string(i) + " crashed with signal " +
+                        std::to_string(WTERMSIG(status)));
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) ++failures;
+  }
+  close(fd);
+  _exit(failures == 0 ? 0 : 1);
+}
+
+}  // namespace
+
+PoolReport run_worker_pool(int workers, const std::vector<int>& todo,
+                           const std::function<void()>& setup,
+                           const std::function<std::string(int)>& job,
+                           const std::function<void(int, const std::string&)>& on_done) {
+  PoolReport result;
+  if (todo.empty()) return result;
+  int k = std::max(1, std::min<int>(workers, static_cast<int>(todo.size())));
+  int fds[2];
+  if (pipe(fds) != 0) throw IoError("cannot create a pipe for the workers");
+  std::fflush(nullptr);
+  std::vector<pid_t> pids;
+  const pid_t parent = getpid();
+  for (int w = 0; w < k; ++w) {
+    std::vector<int> mine;
+    for (size_t j = w; j < todo.size(); j += k) mine.push_back(todo[j]);
+    pid_t pid = fork();
+    if (pid < 0) throw Error("cannot start a worker process: " + std::string(std::strerror(errno)));
+    if (pid == 0) {
+      prctl(PR_SET_PDEATHSIG, SIGKILL);
+      if (getppid() != parent) _exit(1);
+      close(fds[0]);
+      worker_main(mine, setup, job, fds[1]);
+    }
+    pids.push_back(pid);
+  }
+  close(fds[1]);
+
+  std::map<int, bool> done;
+  std::string pending;
+  char buf[4096];
+  ssize_t n;
+  while ((n = read(fds[0], buf, sizeof buf)) > 0) {
+    pending.append(buf, n);
+    size_t nl;
+    while ((nl = pending.find('\n')) != std::string::npos) {
+      std::string line = pending.substr(0, nl);
+      pending.erase(0, nl + 1);
+      std::istringstream in(line);
+      std::string kind;
+      int idx = -1;
+      in >> kind >> idx;
+      std::string rest;
+      std::getline(in, rest);
+      if (!rest.empty() && rest[0] == ' ') rest.erase(0, 1);
+      if (kind == "done") {
+        done[idx] = true;
+        on_done(idx, rest);
+      } else if (kind == "error" && result.first_error.empty()) {
+        result.first_error = "job " + std::to_string(idx) + ": " + rest;
+      }
+    }
+  }
+  close(fds[0]);
+  for (pid_t pid : pids) {
+    int status = 0;
+    waitpid(pid, &status, 0);
+    if (WIFSIGNALED(status) && result.first_error.empty())
+      result.first_error = "a worker was killed by signal " + std::to_string(WTERMSIG(status));
+  }
+  for (int i : todo)
+    if (!done.count(i)) result.failed.push_back(i);
+  return result;
+}
+
+}  // namespace cd

@@ -1,0 +1,25 @@
+#pragma once
+// Episodes in parallel worker processes (libsumo runs one simulation per process). Each
+// worker prepares itself once (loads the network), then runs every job of its share in a
+// fresh fork of itself: every job starts from the same process state, whatever ran before,
+// and a crash costs one job, not the worker. A killed parent takes its workers along.
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace cd {
+
+struct PoolReport {
+  std::vector<int> failed;    // jobs that threw, crashed or never reported
+  std::string first_error;    // "job N: what happened" of the first failure
+};
+
+// Runs job(i) for every i in `todo` on up to `workers` processes. `setup` runs once in each
+// worker before its first job; `job` runs in a fork of the worker and returns a one-line note
+// (or throws); on_done(i, note) is called in this process as jobs finish.
+PoolReport run_worker_pool(int workers, const std::vector<int>& todo,
+                           const std::function<void()>& setup,
+                           const std::function<std::string(int)>& job,
+                           const std::function<void(int, const std::string&)>& on_done);
+
+}  // namespace cd

@@ -1,0 +1,183 @@
+#include "nn/policy_net.hpp"
+
+#include <algorithm>
+#include <sstream>
+
+#include "core/error.hpp"
+
+namespace cd {
+
+namespace nn = torch::nn;
+
+namespace {
+
+constexpr int kBranches = 4;        // follow, left, right, straight (cd::Command)
+constexpr int kMeasurementWidth = 128;
+
+int conv_out(int n, int kernel, int stride, int pad) { return (n + 2 * pad - kernel) / stride + 1; }
+
+nn::Conv2d conv(int in, int out, int kernel, int stride, int pad, bool bias) {
+  return nn::Conv2d(nn::Conv2dOptions(in, out, kernel).stride(stride).padding(pad).bias(bias));
+}
+
+// Linear -> ReLU (-> Dropout) blocks ending in a plain Linear to `out`.
+nn::Sequential mlp(const std::vector<int>& widths, int out, double dropout) {
+  nn::Sequential s;
+  for (size_t i = 0; i + 1 < widths.size(); ++i) {
+    s->push_back(nn::Linear(widths[i], widths[i + 1]));
+    s->push_back(nn::ReLU());
+    if (dropout > 0) s->push_back(nn::Dropout(dropout));
+  }
+  s->push_back(nn::Linear(widths.back(), out));
+  return s;
+}
+
+}  // namespace
+
+int action_dim_of(const std::string& action_head) {
+  if (action_head == "throttle_brake") return 2;
+  if (action_head == "target_speed") return 1;
+  throw ConfigError("unknown action head '" + action_head +
+                    "' (known: throttle_brake, target_speed)");
+}
+
+SmallBackboneImpl::SmallBackboneImpl(int in_channels, int height, int width, int features) {
+  if (height < 16 || width < 16)
+    throw ConfigError("the small backbone needs BEV frames of at least 16x16 pixels (got " +
+                      std::to_string(height) + "x" + std::to_string(width) + ")");
+  convs = nn::Sequential(
+      conv(in_channels, 32, 4, 4, 0, false), nn::BatchNorm2d(32), nn::ReLU(),
+      conv(32, 64, 3, 2, 1, false), nn::BatchNorm2d(64), nn::ReLU(),
+      conv(64, 128, 3, 2, 1, false), nn::BatchNorm2d(128), nn::ReLU(),
+      // Squeezing the channels before the flatten keeps the dense layer small: at batch 1
+      // (closed loop) its weights, not the arithmetic, set the inference time.
+      conv(128, 32, 1, 1, 0, false), nn::BatchNorm2d(32), nn::ReLU());
+  int h = conv_out(conv_out(conv_out(height, 4, 4, 0), 3, 2, 1), 3, 2, 1);
+  int w = conv_out(conv_out(conv_out(width, 4, 4, 0), 3, 2, 1), 3, 2, 1);
+  fc = nn::Linear(32 * h * w, features);
+  register_module("convs", convs);
+  register_module("fc", fc);
+}
+
+torch::Tensor SmallBackboneImpl::forward(torch::Tensor x) {
+  return torch::relu(fc->forward(convs->forward(x).flatten(1)));
+}
+
+BasicBlockImpl::BasicBlockImpl(int in, int out, int stride)
+    : conv1(conv(in, out, 3, stride, 1, false)),
+      conv2(conv(out, out, 3, 1, 1, false)),
+      bn1(out),
+      bn2(out) {
+  register_module("conv1", conv1);
+  register_module("bn1", bn1);
+  register_module("conv2", conv2);
+  register_module("bn2", bn2);
+  if (stride != 1 || in != out) {
+    downsample = nn::Sequential(conv(in, out, 1, stride, 0, false), nn::BatchNorm2d(out));
+    register_module("downsample", downsample);
+  }
+}
+
+torch::Tensor BasicBlockImpl::forward(torch::Tensor x) {
+  torch::Tensor y = torch::relu(bn1->forward(conv1->forward(x)));
+  y = bn2->forward(conv2->forward(y));
+  return torch::relu(y + (downsample ? downsample->forward(x) : x));
+}
+
+ResNet34BackboneImpl::ResNet34BackboneImpl(int in_channels, int features) {
+  stem = nn::Sequential(conv(in_channels, 64, 7, 2, 3, false), nn::BatchNorm2d(64), nn::ReLU(),
+                        nn::MaxPool2d(nn::MaxPool2dOptions(3).stride(2).padding(1)));
+  layers = nn::Sequential();
+  const int blocks[4] = {3, 4, 6, 3};
+  const int widths[4] = {64, 128, 256, 512};
+  int in = 64;
+  for (int stage = 0; stage < 4; ++stage)
+    for (int b = 0; b < blocks[stage]; ++b) {
+      layers->push_back(BasicBlock(in, widths[stage], (b == 0 && stage > 0) ? 2 : 1));
+      in = widths[stage];
+    }
+  register_module("stem", stem);
+  register_module("layers", layers);
+  if (features != 512) {
+    proj = nn::Linear(512, features);
+    register_module("proj", proj);
+  }
+}
+
+torch::Tensor ResNet34BackboneImpl::forward(torch::Tensor x) {
+  torch::Tensor f = layers->forward(stem->forward(x)).mean({2, 3});
+  return proj ? torch::relu(proj->forward(f)) : f;
+}
+
+PolicyNetImpl::PolicyNetImpl(const PolicyNetOptions& o) : options_(o) {
+  const int F = o.features, A = action_dim_of(o.action_head);
+  if (o.backbone == "small") {
+    small = SmallBackbone(o.in_channels, o.height, o.width, F);
+    register_module("backbone", small);
+  } else if (o.backbone == "resnet34") {
+    resnet = ResNet34Backbone(o.in_channels, F);
+    register_module("backbone", resnet);
+  } else {
+    throw ConfigError("unknown backbone '" + o.backbone + "' (known: small, resnet34)");
+  }
+  speed_head = mlp({F, F, F}, 1, 0.0);
+  measurement = nn::Sequential(nn::Linear(1, kMeasurementWidth), nn::ReLU(),
+                               nn::Linear(kMeasurementWidth, kMeasurementWidth), nn::ReLU());
+  fusion = nn::Sequential(nn::Linear(F + kMeasurementWidth, F), nn::ReLU());
+  branches = nn::ModuleList();
+  for (int b = 0; b < kBranches; ++b) branches->push_back(mlp({F, F, F}, A, o.dropout));
+  register_module("speed_head", speed_head);
+  register_module("measurement", measurement);
+  register_module("fusion", fusion);
+  register_module("branches", branches);
+}
+
+torch::Tensor PolicyNetImpl::squash(const torch::Tensor& raw) const {
+  return options_.action_head == "throttle_brake" ? torch::sigmoid(raw) : torch::softplus(raw);
+}
+
+PolicyOutput PolicyNetImpl::forward(const torch::Tensor& image, const torch::Tensor& speed,
+                                    const torch::Tensor& command, bool with_speed) {
+  torch::Tensor f = small ? small->forward(image) : resnet->forward(image);
+  PolicyOutput out;
+  if (with_speed) out.speed = speed_head->forward(f);
+  torch::Tensor j = fusion->forward(torch::cat({f, measurement->forward(speed)}, 1));
+  const int64_t B = image.size(0);
+  if (B == 1 && !is_training()) {
+    // Closed loop: run only the commanded branch.
+    int64_t c = std::clamp<int64_t>(command.item<int64_t>(), 0, kBranches - 1);
+    out.action = squash(branches[c]->as<nn::Sequential>()->forward(j));
+    return out;
+  }
+  std::vector<torch::Tensor> all;
+  for (int b = 0; b < kBranches; ++b) all.push_back(branches[b]->as<nn::Sequential>()->forward(j));
+  torch::Tensor stacked = torch::stack(all, 1);  // B x 4 x A
+  torch::Tensor index =
+      command.clamp(0, kBranches - 1).view({B, 1, 1}).expand({B, 1, stacked.size(2)});
+  out.action = squash(stacked.gather(1, index).squeeze(1));
+  return out;
+}
+
+std::string save_module_bytes(nn::Module& module) {
+  torch::serialize::OutputArchive archive;
+  module.save(archive);
+  std::ostringstream os;
+  archive.save_to(os);
+  return os.str();
+}
+
+void load_module_bytes(nn::Module& module, const std::string& bytes, const torch::Device& device,
+                       const std::string& what) {
+  try {
+    std::istringstream is(bytes);
+    torch::serialize::InputArchive archive;
+    archive.load_from(is, device);
+    module.load(archive);
+  } catch (const c10::Error& e) {
+    std::string msg = e.what_without_backtrace();
+    throw DataError(what + " does not fit this network (" + msg.substr(0, msg.find('\n')) +
+                    "); was it written by another version or settings?");
+  }
+}
+
+}  // namespace cd

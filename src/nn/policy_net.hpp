@@ -1,0 +1,102 @@
+#pragma once
+// The behaviour-cloning policy of bc-so / bc-oh: the CILRS architecture of seed 001 (fig. 5).
+//
+//   image (K*C planes of 0/1, oldest frame first) -> backbone -> feature f
+//   f -> 3-layer MLP -> predicted ego speed (auxiliary "speed regularisation" head)
+//   speed input (zeros in the POMDP setting) -> 2-layer MLP -> m
+//   [f, m] -> fusion layer -> j
+//   j -> one of 4 branches chosen by the command (follow, left, right, straight) -> action
+//
+// Action heads: throttle_brake -> 2 sigmoid outputs in [0,1]; target_speed -> 1 softplus
+// output in m/s (never negative, and unlike ReLU it keeps a gradient at a standstill).
+// Backbones: "small", a CPU-sized CNN (see SmallBackbone), and "resnet34", a real ResNet34
+// (BasicBlocks 3-4-6-3) with a first convolution taking K*C channels, trained from scratch:
+// no ImageNet weights are available here (the seed starts from pretrained ones).
+//
+// This header includes torch: include it only from the .cpp files that run the network.
+#include <string>
+
+#include <torch/torch.h>
+
+namespace cd {
+
+struct PolicyNetOptions {
+  int in_channels = 8;  // K * C
+  int height = 64, width = 64;
+  std::string backbone = "small";              // small | resnet34
+  std::string action_head = "throttle_brake";  // throttle_brake | target_speed
+  int features = 256;
+  double dropout = 0.2;
+};
+
+// Width of the action output of a head name: 2 (throttle, brake) or 1 (target speed).
+int action_dim_of(const std::string& action_head);
+
+struct PolicyOutput {
+  torch::Tensor action;  // B x action_dim
+  torch::Tensor speed;   // B x 1, predicted ego speed (m/s); undefined when not asked for
+};
+
+// Five stages for 64x64 inputs: a 4x4/stride-4 patch convolution (the input has K*C planes,
+// so a first layer at full resolution would cost most of the budget), two 3x3/stride-2
+// convolutions, a 1x1 squeeze, and a fully connected layer to `features`. BatchNorm + ReLU
+// after every convolution. About 1.5 M multiply-adds per 8-plane frame stacked.
+struct SmallBackboneImpl : torch::nn::Module {
+  SmallBackboneImpl(int in_channels, int height, int width, int features);
+  torch::Tensor forward(torch::Tensor x);
+
+  torch::nn::Sequential convs{nullptr};
+  torch::nn::Linear fc{nullptr};
+};
+TORCH_MODULE(SmallBackbone);
+
+struct BasicBlockImpl : torch::nn::Module {
+  BasicBlockImpl(int in, int out, int stride);
+  torch::Tensor forward(torch::Tensor x);
+
+  torch::nn::Conv2d conv1{nullptr}, conv2{nullptr};
+  torch::nn::BatchNorm2d bn1{nullptr}, bn2{nullptr};
+  torch::nn::Sequential downsample{nullptr};  // 1x1 conv + BN when the shape changes
+};
+TORCH_MODULE(BasicBlock);
+
+// ResNet34 (He et al. 2016) up to the global average pool, then a linear map to `features`
+// when that is not 512.
+struct ResNet34BackboneImpl : torch::nn::Module {
+  ResNet34BackboneImpl(int in_channels, int features);
+  torch::Tensor forward(torch::Tensor x);
+
+  torch::nn::Sequential stem{nullptr}, layers{nullptr};
+  torch::nn::Linear proj{nullptr};
+};
+TORCH_MODULE(ResNet34Backbone);
+
+struct PolicyNetImpl : torch::nn::Module {
+  explicit PolicyNetImpl(const PolicyNetOptions& options);
+
+  // image: B x K*C x H x W float; speed: B x 1 float (m/s, zeros in the POMDP setting);
+  // command: B int64 in [0, 3]. with_speed: also run the auxiliary speed head.
+  PolicyOutput forward(const torch::Tensor& image, const torch::Tensor& speed,
+                       const torch::Tensor& command, bool with_speed = true);
+
+  const PolicyNetOptions& options() const { return options_; }
+
+  // Exactly one backbone is set, registered as "backbone".
+  SmallBackbone small{nullptr};
+  ResNet34Backbone resnet{nullptr};
+  torch::nn::Sequential speed_head{nullptr}, measurement{nullptr}, fusion{nullptr};
+  torch::nn::ModuleList branches{nullptr};
+
+ private:
+  torch::Tensor squash(const torch::Tensor& raw) const;  // the head's output nonlinearity
+  PolicyNetOptions options_;
+};
+TORCH_MODULE(PolicyNet);
+
+// The module's parameters and buffers as the bytes of torch::save, and back. Throws
+// DataError (naming `what`) when the bytes do not fit the network.
+std::string save_module_bytes(torch::nn::Module& module);
+void load_module_bytes(torch::nn::Module& module, const std::string& bytes,
+                       const torch::Device& device, const std::string& what);
+
+}  // namespace cd

@@ -1,0 +1,312 @@
+// `causaldrive report`: comparison tables over hand-made results.json files (mean and sample
+// standard deviation over seeds, missing cells, row and column order, folder discovery) and its
+// error paths (exit code 1, one stderr line naming the file and key).
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "../support/test_support.hpp"
+#include "bench/report.hpp"
+
+namespace cd {
+namespace {
+
+using test::CommandResult;
+using test::TempDir;
+namespace fs = std::filesystem;
+
+const std::string kDash = "\u2013";
+
+bool has(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+// A results.json like `causaldrive eval` writes; `summary` entries override the defaults.
+nlohmann::json results(const std::string& agent, const std::string& suite,
+                       const nlohmann::json& summary = nlohmann::json::object(),
+                       const std::string& label = "") {
+  nlohmann::json s = {{"episodes", 75},          {"infrastructure_failures", 0},
+                      {"success_rate", 0.9},     {"collision_rate", 0.04},
+                      {"inertia_rate", 0.02},    {"timeout_rate", 0.04},
+                      {"error_rate", 0.06},      {"stop_go_events", 31},
+                      {"stalls", 2},             {"stall_rate", 0.0645},
+                      {"start_delay_median_s", 1.3}, {"start_delay_p90_s", 2.9},
+                      {"red_light_violations_per_km", 0.1}, {"route_completion", 0.93},
+                      {"mean_speed", 5.1}};
+  for (const auto& [k, v] : summary.items()) s[k] = v;
+  nlohmann::json j = {{"agent", agent},
+                      {"suite", suite},
+                      {"town", "town-a"},
+                      {"traffic", "regular"},
+                      {"trials", 3},
+                      {"seed", 0},
+                      {"episodes", nlohmann::json::array({{{"task", 0}, {"trial", 0},
+                                                           {"outcome", "success"}}})},
+                      {"summary", s}};
+  if (!label.empty()) j["label"] = label;
+  return j;
+}
+
+// Writes `j` as DIR/results.json, creating DIR.
+void put(const std::string& dir, const nlohmann::json& j) {
+  fs::create_directories(dir);
+  test::write_text(dir + "/results.json", j.dump(2));
+}
+
+std::vector<std::string> report_lines(const std::string& csv) { return test::split_lines(csv); }
+
+// The table line (Markdown row) of `label` under the title starting with `title`.
+std::string table_row(const std::string& markdown, const std::string& title,
+                      const std::string& label) {
+  bool in = false;
+  for (const std::string& line : test::split_lines(markdown)) {
+    if (test::starts_with(line, "## ")) in = test::starts_with(line, "## " + title);
+    else if (in && test::starts_with(line, "| " + label + " ")) return line;
+  }
+  return "";
+}
+
+// Cells of a Markdown row, trimmed.
+std::vector<std::string> cells(const std::string& row) {
+  std::vector<std::string> out;
+  std::string cur;
+  for (size_t i = 1; i < row.size(); ++i) {
+    if (row[i] == '|') {
+      size_t b = cur.find_first_not_of(' '), e = cur.find_last_not_of(' ');
+      out.push_back(b == std::string::npos ? "" : cur.substr(b, e - b + 1));
+      cur.clear();
+    } else {
+      cur += row[i];
+    }
+  }
+  return out;
+}
+
+// The user-error contract: exit code 1 and one line "causaldrive: error: ...". Returns it.
+std::string expect_one_line_error(const CommandResult& r, const std::string& what) {
+  EXPECT_TRUE(r.exited && !r.timed_out) << what << ": " << r.describe();
+  EXPECT_EQ(r.exit_code, 1) << what << ": " << r.describe();
+  std::vector<std::string> lines = test::split_lines(r.err);
+  EXPECT_EQ(lines.size(), 1u) << what << ": stderr should be one line:\n" << r.err;
+  if (lines.empty()) return "";
+  EXPECT_TRUE(test::starts_with(lines.front(), "causaldrive: error:")) << lines.front();
+  EXPECT_EQ(r.out, "") << what << ": nothing on stdout on an error";
+  return lines.front();
+}
+
+TEST(ReportStats, MeanAndSampleStd) {
+  CellStats s = mean_std({0.1, 0.2, 0.6});
+  EXPECT_EQ(s.n, 3);
+  EXPECT_NEAR(s.mean, 0.3, 1e-15);
+  ASSERT_TRUE(s.std.has_value());
+  EXPECT_NEAR(*s.std, std::sqrt(0.07), 1e-15);  // sqrt((0.04 + 0.01 + 0.09) / (3 - 1))
+  CellStats one = mean_std({0.25});
+  EXPECT_EQ(one.n, 1);
+  EXPECT_EQ(one.mean, 0.25);
+  EXPECT_FALSE(one.std.has_value()) << "no sample std from one seed";
+  EXPECT_EQ(mean_std({}).n, 0);
+}
+
+TEST(ReportCli, SeedsGiveMeanAndSampleStdInCsvAndTable) {
+  TempDir dir("cdtest-report");
+  put(dir / "runs/bc-s0", results("bc", "town-a-regular",
+                                  {{"error_rate", 0.10}, {"stall_rate", 0.5}}, "BC"));
+  put(dir / "runs/bc-s1", results("bc", "town-a-regular",
+                                  {{"error_rate", 0.20}, {"stall_rate", 0.25}}, "BC"));
+  put(dir / "runs/bc-s2", results("bc", "town-a-dense", {{"error_rate", 0.1}}, "BC"));
+  put(dir / "runs/bc-s3", results("bc", "town-a-dense", {{"error_rate", 0.2}}, "BC"));
+  put(dir / "runs/bc-s4", results("bc", "town-a-dense", {{"error_rate", 0.6}}, "BC"));
+  const std::string csv = dir / "out/report.csv";
+  CommandResult r = test::run_cli({"report", dir / "runs", "--csv", csv});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  ASSERT_TRUE(fs::exists(csv)) << r.describe();
+  std::vector<std::string> lines = report_lines(test::read_text(csv));
+  ASSERT_FALSE(lines.empty());
+  EXPECT_EQ(lines[0], "label,suite,metric,mean,std,n");
+  auto has_line = [&](const std::string& want) {
+    return std::find(lines.begin(), lines.end(), want) != lines.end();
+  };
+  // (0.10 + 0.20) / 2 = 0.15; sqrt(2 * 0.05^2 / (2 - 1)) = 0.05 * sqrt(2) = 0.0707106781187.
+  EXPECT_TRUE(has_line("BC,town-a-regular,error_rate,0.15,0.0707106781187,2"))
+      << test::read_text(csv);
+  // 0.375 +- sqrt(2 * 0.125^2) = 0.176776695297 (0.125 * sqrt(2)).
+  EXPECT_TRUE(has_line("BC,town-a-regular,stall_rate,0.375,0.176776695297,2"))
+      << test::read_text(csv);
+  // (0.1 + 0.2 + 0.6) / 3 = 0.3; sqrt((0.04 + 0.01 + 0.09) / 2) = sqrt(0.07) = 0.264575131106.
+  EXPECT_TRUE(has_line("BC,town-a-dense,error_rate,0.3,0.264575131106,3")) << test::read_text(csv);
+  // Equal values: std 0.
+  EXPECT_TRUE(has_line("BC,town-a-dense,collision_rate,0.04,0,3")) << test::read_text(csv);
+  // Each metric once though collision_rate is in two sets: 8 metrics x 2 suites + header.
+  EXPECT_EQ(lines.size(), 1u + 2 * 8) << test::read_text(csv);
+  EXPECT_EQ(test::list_dir(dir / "out"), std::vector<std::string>{"report.csv"})
+      << "no temporary file left beside the CSV";
+
+  // The table shows the same in %, one decimal.
+  std::vector<std::string> row = cells(table_row(r.out, "Error rates", "BC"));
+  ASSERT_EQ(row.size(), 1u + 2 * 3) << r.out;
+  // Suites sorted: town-a-dense first.
+  EXPECT_EQ(row[1], "30.0 \u00b1 26.5") << r.out;
+  EXPECT_EQ(row[4], "15.0 \u00b1 7.1") << r.out;
+  std::vector<std::string> stop = cells(table_row(r.out, "Stop-and-go", "BC"));
+  ASSERT_EQ(stop.size(), 7u) << r.out;
+  EXPECT_EQ(stop[4], "37.5 \u00b1 17.7") << r.out;
+  EXPECT_EQ(stop[5], "1.3 \u00b1 0.0") << r.out;
+}
+
+TEST(ReportCli, MissingCellRowOrderAndColumnOrder) {
+  TempDir dir("cdtest-report");
+  // Paths sort a, b, c: labels first appear as "zeta", "alpha"; suites sort as s1, s2.
+  put(dir / "runs/a", results("zeta-agent", "s2", {}, "zeta"));
+  put(dir / "runs/b", results("alpha", "s1", {{"success_rate", 0.5}}));  // no label: agent
+  put(dir / "runs/c", results("zeta-agent", "s1", {{"success_rate", 0.25}}, "zeta"));
+  const std::string md = dir / "report.md", csv = dir / "report.csv";
+  CommandResult r = test::run_cli(
+      {"report", dir / "runs", "--metrics", "outcomes", "--markdown", md, "--csv", csv});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_EQ(test::read_text(md), r.out) << "--markdown writes what is printed";
+
+  std::vector<std::string> lines = test::split_lines(r.out);
+  ASSERT_GE(lines.size(), 6u) << r.out;
+  EXPECT_TRUE(test::starts_with(lines[0], "## Outcomes")) << r.out;
+  EXPECT_FALSE(has(r.out, "## Error")) << "--metrics outcomes prints one table\n" << r.out;
+  std::vector<std::string> header = cells(lines[2]);
+  ASSERT_EQ(header.size(), 7u) << r.out;
+  EXPECT_EQ(header[0], "label");
+  EXPECT_EQ(header[1], "s1 success %");
+  EXPECT_EQ(header[4], "s2 success %");
+  EXPECT_TRUE(test::starts_with(lines[4], "| zeta ")) << r.out;
+  EXPECT_TRUE(test::starts_with(lines[5], "| alpha ")) << r.out;
+
+  std::vector<std::string> alpha = cells(lines[5]);
+  ASSERT_EQ(alpha.size(), 7u);
+  EXPECT_EQ(alpha[1], "50.0") << "one seed: the mean alone";
+  EXPECT_EQ(alpha[4], kDash) << "alpha has no run on s2";
+  EXPECT_EQ(alpha[5], kDash);
+  EXPECT_EQ(alpha[6], kDash);
+  std::vector<std::string> zeta = cells(lines[4]);
+  EXPECT_EQ(zeta[1], "25.0");
+  EXPECT_EQ(zeta[4], "90.0");
+
+  std::string csv_text = test::read_text(csv);
+  EXPECT_FALSE(has(csv_text, "alpha,s2,")) << "no rows for a missing cell\n" << csv_text;
+  EXPECT_TRUE(has(csv_text, "alpha,s1,success_rate,0.5,,1\n")) << csv_text;
+  EXPECT_LT(csv_text.find("zeta,"), csv_text.find("alpha,")) << csv_text;
+}
+
+TEST(ReportCli, NestedFoldersNullDelaysAndQuoting) {
+  TempDir dir("cdtest-report");
+  put(dir / "root/x/y/seed0", results("bc", "town-a-stopgo", {{"start_delay_median_s", 2.0}},
+                                      "bc, target speed"));
+  put(dir / "root/x/seed1", results("bc", "town-a-stopgo", {{"start_delay_median_s", 4.0}},
+                                    "bc, target speed"));
+  put(dir / "root", results("cim", "town-a-stopgo",
+                            {{"start_delay_median_s", nullptr}, {"start_delay_p90_s", nullptr},
+                             {"stall_rate", nullptr}}));
+  test::write_text(dir / "root/x/notes.json", "not json, and not a results.json");
+  const std::string csv = dir / "report.csv";
+  // The same folder twice (directly and through its parent) counts once.
+  CommandResult r = test::run_cli(
+      {"report", dir / "root", dir / "root/x", "--metrics", "stopgo", "--csv", csv});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  std::string csv_text = test::read_text(csv);
+  EXPECT_TRUE(has(csv_text, "\"bc, target speed\",town-a-stopgo,start_delay_median_s,3,"
+                            "1.41421356237,2\n"))
+      << csv_text;
+  EXPECT_TRUE(has(csv_text, "cim,town-a-stopgo,start_delay_median_s,,,0\n")) << csv_text;
+  std::vector<std::string> cim = cells(table_row(r.out, "Stop-and-go", "cim"));
+  ASSERT_EQ(cim.size(), 4u) << r.out;
+  EXPECT_EQ(cim[1], "n/a") << "a run without events has no delay";
+  EXPECT_EQ(cim[2], "n/a");
+  // root/results.json sorts before root/x/..., so cim is the first row.
+  EXPECT_LT(r.out.find("| cim "), r.out.find("| bc, target speed ")) << r.out;
+}
+
+TEST(ReportCli, MetricsAllIsDefault) {
+  TempDir dir("cdtest-report");
+  put(dir / "run", results("bc", "s1"));
+  CommandResult r = test::run_cli({"report", dir / "run"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  size_t e = r.out.find("## Error rates"), o = r.out.find("## Outcomes"),
+         s = r.out.find("## Stop-and-go");
+  ASSERT_NE(e, std::string::npos) << r.out;
+  ASSERT_NE(o, std::string::npos) << r.out;
+  ASSERT_NE(s, std::string::npos) << r.out;
+  EXPECT_LT(e, o);
+  EXPECT_LT(o, s);
+  CommandResult two = test::run_cli({"report", dir / "run", "--metrics", "stopgo,error"});
+  ASSERT_EQ(two.exit_code, 0) << two.describe();
+  EXPECT_LT(two.out.find("## Stop-and-go"), two.out.find("## Error")) << two.out;
+  EXPECT_FALSE(has(two.out, "## Outcomes")) << two.out;
+}
+
+TEST(ReportErrors, MissingFolder) {
+  TempDir dir("cdtest-report");
+  std::string line = expect_one_line_error(test::run_cli({"report", dir / "nope"}), "missing");
+  EXPECT_TRUE(has(line, dir / "nope")) << line;
+  EXPECT_TRUE(has(line, "does not exist")) << line;
+}
+
+TEST(ReportErrors, FolderWithoutResults) {
+  TempDir dir("cdtest-report");
+  put(dir / "good", results("bc", "s1"));
+  fs::create_directories(dir / "empty/sub");
+  std::string csv = dir / "r.csv";
+  std::string line = expect_one_line_error(
+      test::run_cli({"report", dir / "good", dir / "empty", "--csv", csv}), "empty folder");
+  EXPECT_TRUE(has(line, dir / "empty")) << line;
+  EXPECT_TRUE(has(line, "no results.json")) << line;
+  EXPECT_FALSE(fs::exists(csv)) << "nothing written on an error";
+}
+
+TEST(ReportErrors, InvalidJson) {
+  TempDir dir("cdtest-report");
+  fs::create_directories(dir / "run");
+  test::write_text(dir / "run/results.json", "{\"agent\": \"bc\",\n \"suite\": }\n");
+  std::string line = expect_one_line_error(test::run_cli({"report", dir / "run"}), "bad JSON");
+  EXPECT_TRUE(has(line, dir / "run/results.json")) << line;
+  EXPECT_TRUE(has(line, "not valid JSON")) << line;
+  EXPECT_TRUE(has(line, "line 2")) << line;
+}
+
+TEST(ReportErrors, MissingKeys) {
+  for (const std::string key : {"agent", "suite", "summary"}) {
+    TempDir dir("cdtest-report");
+    put(dir / "ok", results("bc", "s1"));
+    nlohmann::json j = results("bc", "s2");
+    j.erase(key);
+    put(dir / "broken", j);
+    std::string line =
+        expect_one_line_error(test::run_cli({"report", dir.path()}), "without " + key);
+    EXPECT_TRUE(has(line, dir / "broken/results.json")) << line;
+    EXPECT_TRUE(has(line, "'" + key + "'")) << line;
+  }
+}
+
+TEST(ReportErrors, BadSummaryValues) {
+  TempDir dir("cdtest-report");
+  put(dir / "run", results("bc", "s1", {{"inertia_rate", 12.5}}));
+  std::string line = expect_one_line_error(test::run_cli({"report", dir / "run"}), "rate > 1");
+  EXPECT_TRUE(has(line, dir / "run/results.json")) << line;
+  EXPECT_TRUE(has(line, "summary.inertia_rate")) << line;
+  put(dir / "run", results("bc", "s1", {{"start_delay_p90_s", "slow"}}));
+  line = expect_one_line_error(test::run_cli({"report", dir / "run"}), "string delay");
+  EXPECT_TRUE(has(line, "summary.start_delay_p90_s")) << line;
+}
+
+TEST(ReportErrors, UnknownMetricsAndNoRunDir) {
+  TempDir dir("cdtest-report");
+  put(dir / "run", results("bc", "s1"));
+  std::string line = expect_one_line_error(
+      test::run_cli({"report", dir / "run", "--metrics", "errors"}), "--metrics errors");
+  EXPECT_TRUE(has(line, "--metrics")) << line;
+  EXPECT_TRUE(has(line, "'errors'")) << line;
+  EXPECT_TRUE(has(line, "outcomes")) << "lists the choices: " << line;
+  line = expect_one_line_error(test::run_cli({"report"}), "no RUN_DIR");
+  EXPECT_TRUE(has(line, "RUN_DIR")) << line;
+}
+
+}  // namespace
+}  // namespace cd
