@@ -62,6 +62,13 @@ void add_eval(CLI::App& app) {
     if (r.run_now > 0 && r.seconds > 0)
       std::printf(", %ld steps in %.1f s, %.0f steps/s", r.steps, r.seconds, r.steps / r.seconds);
     std::printf(")\n");
+    const long failed = r.results["summary"]["infrastructure_failures"].get<long>();
+    if (failed > 0)
+      std::fprintf(stderr,
+                   "causaldrive: warning: %ld episode(s) failed for reasons outside the agent "
+                   "(worker or SUMO crash); they are not counted; rerun the same command to "
+                   "retry them\n",
+                   failed);
   });
 }
 

@@ -1,0 +1,165 @@
+// Episode classification and stop-and-go events (SPEC section 5) on hand-made traces.
+#include "bench/metrics.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include <nlohmann/json.hpp>
+
+#include "core/error.hpp"
+
+namespace cd {
+namespace {
+
+constexpr double kDt = 0.1;
+
+TEST(BenchMetrics, TimeoutIsRouteAtFiveKmhPlusTwentySeconds) {
+  EXPECT_DOUBLE_EQ(route_timeout_s(0), 20.0);
+  EXPECT_NEAR(route_timeout_s(300), 300 / (5 / 3.6) + 20, 1e-9);
+  EXPECT_NEAR(route_timeout_s(500), 380.0, 1e-9);
+}
+
+TEST(BenchMetrics, InertiaNeedsTheLastFifteenSecondsStoppedWithAFreePath) {
+  const size_t n15 = 150;  // 15 s at 10 Hz
+  std::vector<char> stopped(400, 0), free_path(400, 1);
+  for (size_t i = 400 - n15; i < 400; ++i) stopped[i] = 1;
+  EXPECT_TRUE(is_inertia(stopped, free_path, kDt));
+  // One step less than 15 s stopped: not inertia.
+  stopped[400 - n15] = 0;
+  EXPECT_FALSE(is_inertia(stopped, free_path, kDt));
+  stopped[400 - n15] = 1;
+  // Blocked once within the span (the leader stood there): not inertia.
+  free_path[390] = 0;
+  EXPECT_FALSE(is_inertia(stopped, free_path, kDt));
+  // Blocked before the span only: inertia again.
+  free_path[390] = 1;
+  free_path[100] = 0;
+  EXPECT_TRUE(is_inertia(stopped, free_path, kDt));
+  // An episode shorter than 15 s cannot show inertia.
+  EXPECT_FALSE(is_inertia(std::vector<char>(100, 1), std::vector<char>(100, 1), kDt));
+}
+
+// Feeds (speed, free) pairs for `seconds` seconds.
+void feed(StopGoTracker& t, double speed, bool free_path, double seconds) {
+  for (int i = 0; i < static_cast<int>(std::lround(seconds / kDt)); ++i) t.observe(speed, free_path);
+}
+
+TEST(BenchMetrics, StopGoEventTimesTheStartAfterThePathFrees) {
+  StopGoTracker t(kDt);
+  feed(t, 0.0, false, 3.0);  // waiting at a red light
+  feed(t, 0.0, true, 2.0);   // green: the ego still stands 2 s
+  feed(t, 3.0, true, 1.0);   // and goes
+  t.finish();
+  ASSERT_EQ(t.events().size(), 1u);
+  const StopGoEvent& e = t.events()[0];
+  EXPECT_EQ(e.kind, "freed");
+  EXPECT_NEAR(e.time_s, 3.1, 1e-9);   // first step with the path free
+  EXPECT_NEAR(e.delay_s, 2.0, 1e-9);  // until the first step above 0.5 m/s
+  EXPECT_TRUE(e.started);
+  EXPECT_FALSE(e.stall);
+}
+
+TEST(BenchMetrics, StallWhenTheDelayExceedsFiveSecondsOrTheEgoNeverStarts) {
+  StopGoTracker late(kDt);
+  feed(late, 0.0, false, 1.0);
+  feed(late, 0.2, true, 6.0);  // creeping below 0.5 m/s is still standing
+  feed(late, 1.0, true, 1.0);
+  late.finish();
+  ASSERT_EQ(late.events().size(), 1u);
+  EXPECT_TRUE(late.events()[0].stall);
+  EXPECT_TRUE(late.events()[0].started);
+  EXPECT_NEAR(late.events()[0].delay_s, 6.0, 1e-9);
+
+  StopGoTracker never(kDt);
+  feed(never, 0.0, false, 1.0);
+  feed(never, 0.0, true, 20.0);
+  never.finish();
+  ASSERT_EQ(never.events().size(), 1u);
+  EXPECT_TRUE(never.events()[0].stall);
+  EXPECT_FALSE(never.events()[0].started);
+  EXPECT_NEAR(never.events()[0].delay_s, 19.9, 1e-9);  // censored at the episode's end
+}
+
+TEST(BenchMetrics, BlockedAgainBeforeTheStallTimeIsNoEvent) {
+  StopGoTracker t(kDt);
+  feed(t, 0.0, false, 1.0);
+  feed(t, 0.0, true, 2.0);   // freed, but before the ego goes ...
+  feed(t, 0.0, false, 3.0);  // ... blocked again: it was right to wait
+  feed(t, 0.0, true, 1.0);   // freed again: a new event
+  feed(t, 2.0, true, 1.0);
+  t.finish();
+  ASSERT_EQ(t.events().size(), 1u);
+  EXPECT_NEAR(t.events()[0].time_s, 6.1, 1e-9);
+  EXPECT_NEAR(t.events()[0].delay_s, 1.0, 1e-9);
+}
+
+TEST(BenchMetrics, FreePathAtTakeoverIsAStartEventAndMovingEgoMakesNone) {
+  StopGoTracker t(kDt);
+  feed(t, 0.0, true, 0.5);
+  feed(t, 5.0, true, 3.0);
+  feed(t, 5.0, false, 1.0);  // the path blocks and frees while the ego drives: no event
+  feed(t, 5.0, true, 1.0);
+  t.finish();
+  ASSERT_EQ(t.events().size(), 1u);
+  EXPECT_EQ(t.events()[0].kind, "start");
+  EXPECT_NEAR(t.events()[0].delay_s, 0.5, 1e-9);
+}
+
+TEST(BenchMetrics, SummaryRatesExcludeInfrastructureFailures) {
+  std::vector<EpisodeResult> eps(5);
+  const char* outcomes[] = {"success", "collision", "inertia", "timeout",
+                            "infrastructure_failure"};
+  for (int i = 0; i < 5; ++i) {
+    eps[i].outcome = outcomes[i];
+    eps[i].route_length_m = 400;
+    eps[i].distance_m = 200;
+    eps[i].duration_s = 100;
+  }
+  eps[0].distance_m = 400;
+  eps[0].red_light_violations = 1;
+  eps[1].events = {{1.0, 1.0, true, false, "start"}, {5.0, 7.0, true, true, "freed"}};
+  eps[2].events = {{1.0, 3.0, true, false, "start"}};
+  nlohmann::json s = summarize(eps);
+  EXPECT_EQ(s["episodes"], 4);
+  EXPECT_EQ(s["infrastructure_failures"], 1);
+  EXPECT_DOUBLE_EQ(s["success_rate"].get<double>(), 0.25);
+  EXPECT_DOUBLE_EQ(s["collision_rate"].get<double>(), 0.25);
+  EXPECT_DOUBLE_EQ(s["inertia_rate"].get<double>(), 0.25);
+  EXPECT_DOUBLE_EQ(s["timeout_rate"].get<double>(), 0.25);
+  EXPECT_DOUBLE_EQ(s["error_rate"].get<double>(), 0.5);
+  EXPECT_EQ(s["stop_go_events"], 3);
+  EXPECT_EQ(s["stalls"], 1);
+  EXPECT_NEAR(s["stall_rate"].get<double>(), 1.0 / 3, 1e-12);
+  EXPECT_DOUBLE_EQ(s["start_delay_median_s"].get<double>(), 3.0);
+  EXPECT_NEAR(s["start_delay_p90_s"].get<double>(), 3.0 + 0.8 * 4.0, 1e-12);
+  // 1 violation over 1.0 km driven (400 + 3 x 200 m).
+  EXPECT_NEAR(s["red_light_violations_per_km"].get<double>(), 1.0, 1e-12);
+  EXPECT_NEAR(s["route_completion"].get<double>(), (1 + 0.5 * 3) / 4, 1e-12);
+  EXPECT_NEAR(s["mean_speed"].get<double>(), 1000.0 / 400.0, 1e-12);
+  // No events at all: the delays are null, not zero.
+  nlohmann::json none = summarize({eps[3]});
+  EXPECT_TRUE(none["start_delay_median_s"].is_null());
+}
+
+TEST(BenchMetrics, EpisodeRecordRoundTrip) {
+  EpisodeResult e;
+  e.index = 7;
+  e.task = 2;
+  e.trial = 1;
+  e.scenario = "leader";
+  e.traffic_seed = 123456789012345ULL;
+  e.outcome = "collision";
+  e.collided_with = "bg4";
+  e.route_length_m = 321.5;
+  e.distance_m = 100.25;
+  e.duration_s = 30;
+  e.red_light_violations = 2;
+  e.events = {{4.5, 1.2, true, false, "freed"}};
+  EpisodeResult back = episode_from_json(episode_to_json(e));
+  EXPECT_EQ(episode_to_json(back).dump(), episode_to_json(e).dump());
+  EXPECT_THROW(episode_from_json(nlohmann::json{{"index", 1}}), DataError);
+}
+
+}  // namespace
+}  // namespace cd
