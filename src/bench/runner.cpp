@@ -86,7 +86,7 @@ void inject_crash(int index, const std::string& out) {
 }  // namespace
 
 EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Settings& settings,
-                          long* steps) {
+                          LoopStats* stats) {
   const double dt = settings.world.dt;
   world.reset(task);
   agent.begin_episode();
@@ -126,6 +126,7 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
   std::vector<char> stopped, free_path;
   long n = 0;
   const double t0 = world.time();
+  const auto wall0 = std::chrono::steady_clock::now();
   while (sr.outcome == Outcome::Running) {
     push_frame();
     for (int j = 0; j < static_cast<int>(obs.frames.size()); ++j) {
@@ -145,7 +146,10 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
     free_path.push_back(pf);
   }
   tracker.finish();
-  if (steps) *steps += n;
+  if (stats) {
+    stats->steps += n;
+    stats->seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  }
 
   r.events = tracker.events();
   r.duration_s = world.time() - t0;
@@ -225,13 +229,13 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
     inject_crash(i, out);
     // The agent is made after the fork: each episode starts from the same agent state.
     auto agent = make_agent(req.agent, req.checkpoint, settings);
-    long steps = 0;
-    EpisodeResult r = run_episode(*world, *agent, task_of(i), settings, &steps);
+    LoopStats stats;
+    EpisodeResult r = run_episode(*world, *agent, task_of(i), settings, &stats);
     r.index = i;
     r.task = i / trials;
     r.trial = i % trials;
     write_file_atomic(ep_dir + "/" + episode_record_name(i), episode_to_json(r).dump() + "\n");
-    return std::to_string(steps) + " " + r.outcome;
+    return std::to_string(stats.steps) + " " + r.outcome;
   };
   auto on_done = [&](int i, const std::string& note) {
     std::istringstream in(note);

@@ -28,11 +28,18 @@ struct EvalReport {
   long steps = 0;          // agent steps run by this call
 };
 
+// Work done by run_episode: agent steps and the wall time of the driving loop (observation,
+// agent, simulation step and checks; reset and history prefill excluded).
+struct LoopStats {
+  long steps = 0;
+  double seconds = 0;
+};
+
 // One episode of `agent` on `task` (with the trial's traffic seed already in it) in `world`:
 // holds the ego still for the history prefill, then lets the agent drive until success,
 // collision or timeout, and classifies the outcome.
 EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Settings& settings,
-                          long* steps = nullptr);
+                          LoopStats* stats = nullptr);
 
 // Runs the suite settings.eval.suite into settings.eval.out (settings.world.town and traffic
 // are taken from the suite). Throws ConfigError when the folder holds another run.

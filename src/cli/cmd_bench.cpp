@@ -5,6 +5,9 @@
 
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
+#include "agents/agent.hpp"
+#include "bench/runner.hpp"
+#include "bench/suite.hpp"
 #include "collect/expert_episode.hpp"
 #include "world/world.hpp"
 
@@ -61,6 +64,40 @@ void bench_world(const Settings& s, long steps, bool json) {
   }
 }
 
+// Closed-loop steps/s of an agent (observation history, inference, control, SUMO step,
+// checks) on the first tasks of a suite, in this process, against the expert on the same
+// tasks in the same run.
+void bench_eval(Settings s, const std::string& agent_name, const std::string& checkpoint,
+                const std::string& suite_name, int episodes, bool json) {
+  Suite suite = load_suite(suite_name);
+  s.world.town = suite.town;
+  s.world.traffic = suite.traffic;
+  World world(s);
+  auto measure = [&](const std::string& name, const std::string& ckpt) {
+    LoopStats stats;
+    for (int i = 0; i < episodes; ++i) {
+      auto agent = make_agent(name, ckpt, s);
+      run_episode(world, *agent, suite.tasks[static_cast<size_t>(i) % suite.tasks.size()], s,
+                  &stats);
+    }
+    return stats;
+  };
+  LoopStats a = measure(agent_name, checkpoint);
+  LoopStats x = measure("expert", "");
+  const double rate = a.steps / a.seconds, expert_rate = x.steps / x.seconds;
+  if (json) {
+    nlohmann::json j = {{"agent", agent_name},       {"suite", suite.name},
+                        {"episodes", episodes},      {"steps", a.steps},
+                        {"steps_per_s", rate},       {"expert_steps_per_s", expert_rate},
+                        {"ratio_to_expert", rate / expert_rate}};
+    std::printf("%s\n", j.dump().c_str());
+  } else {
+    std::printf("closed loop on %s, %d episodes (one process)\n", suite.name.c_str(), episodes);
+    std::printf("  %-10s %10.0f steps/s  (%ld steps)\n", agent_name.c_str(), rate, a.steps);
+    std::printf("  %-10s %10.0f steps/s  (%ld steps)\n", "expert", expert_rate, x.steps);
+  }
+}
+
 }  // namespace
 
 void add_bench(CLI::App& app) {
@@ -75,6 +112,22 @@ void add_bench(CLI::App& app) {
       ->check(CLI::PositiveNumber);
   world->add_flag("--json", *json, "print one JSON object");
   world->callback([=] { bench_world(settings_from(*config), *steps, *json); });
+
+  auto agent = std::make_shared<std::string>();
+  auto checkpoint = std::make_shared<std::string>();
+  auto suite = std::make_shared<std::string>("town-a-regular");
+  auto episodes = std::make_shared<int>(5);
+  CLI::App* ev = bench->add_subcommand(
+      "eval", "closed-loop steps/s of an agent, inference included, against the expert");
+  ev->add_option("--config,-c", *config, "TOML config (default: built-in quickstart)");
+  ev->add_option("--agent", *agent, "expert | cs | bc-so | bc-oh")->required();
+  ev->add_option("--checkpoint", *checkpoint, "training output folder of a learned agent");
+  ev->add_option("--suite", *suite, "suite whose first tasks are driven");
+  ev->add_option("--episodes", *episodes, "episodes per agent")->check(CLI::PositiveNumber);
+  ev->add_flag("--json", *json, "print one JSON object");
+  ev->callback([=] {
+    bench_eval(settings_from(*config), *agent, *checkpoint, *suite, *episodes, *json);
+  });
 }
 
 }  // namespace cd::cli
