@@ -302,6 +302,7 @@ std::string render_markdown(const ReportTable& table, const std::vector<MetricSe
       }
       return s + "\n";
     };
+    if (!out.empty()) out += '\n';  // a blank line between tables
     out += "## " + set.title + "\n\n";
     out += line(rows[0]);
     std::string rule = "|";
@@ -312,7 +313,6 @@ std::string render_markdown(const ReportTable& table, const std::vector<MetricSe
     }
     out += rule + "\n";
     for (size_t i = 1; i < rows.size(); ++i) out += line(rows[i]);
-    out += "\n";
   }
   return out;
 }

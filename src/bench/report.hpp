@@ -77,7 +77,8 @@ struct ReportTable {
 // Groups runs (kept by pointer: `runs` must outlive the table).
 ReportTable build_report(const std::vector<RunResult>& runs);
 
-// Markdown: for each set a title line ("## ..."), a blank line, the table, a blank line.
+// Markdown: for each set a title line ("## ..."), a blank line and the table; blank lines
+// between sets.
 // Cells: "mean ± sd" (just the mean for one seed), "–" when the label has no run on the suite,
 // "n/a" when its runs have no value for the metric (null, e.g. no stop-and-go event).
 std::string render_markdown(const ReportTable& table, const std::vector<MetricSet>& sets);

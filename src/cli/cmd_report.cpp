@@ -35,13 +35,16 @@ void add_report(CLI::App& app) {
   auto args = std::make_shared<ReportArgs>();
   CLI::App* sub = app.add_subcommand(
       "report", "comparison tables (mean ± sd over seeds) from evaluation runs' results.json");
-  sub->add_option("run_dirs", args->run_dirs,
+  sub->add_option("RUN_DIR", args->run_dirs,
                   "evaluation output folders holding results.json, or folders under which they "
                   "lie (searched recursively)");
   sub->add_option("--metrics,-m", args->metrics,
-                  "error | outcomes | stopgo | all, or a comma-separated list (default: all)");
-  sub->add_option("--csv", args->csv, "also write a long-format CSV (label,suite,metric,mean,std,n)");
-  sub->add_option("--markdown", args->markdown, "also write the printed Markdown to this file");
+                  "error | outcomes | stopgo | all, or a comma-separated list (default: all)")
+      ->type_name("SETS");
+  sub->add_option("--csv", args->csv, "also write a long-format CSV (label,suite,metric,mean,std,n)")
+      ->type_name("FILE");
+  sub->add_option("--markdown", args->markdown, "also write the printed Markdown to this file")
+      ->type_name("FILE");
   sub->callback([args] {
     // Validated here rather than by CLI11 so that every user error is one line and exit code 1.
     std::vector<MetricSet> sets = parse_metric_sets(args->metrics);

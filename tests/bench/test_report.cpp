@@ -3,6 +3,9 @@
 // error paths (exit code 1, one stderr line naming the file and key).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -10,6 +13,7 @@
 
 #include "../support/test_support.hpp"
 #include "bench/report.hpp"
+#include "core/error.hpp"
 
 namespace cd {
 namespace {
@@ -196,7 +200,7 @@ TEST(ReportCli, MissingCellRowOrderAndColumnOrder) {
   EXPECT_LT(csv_text.find("zeta,"), csv_text.find("alpha,")) << csv_text;
 }
 
-TEST(ReportCli, NestedFoldersNullDelaysAndQuoting) {
+TEST(ReportLibrary, NestedFoldersNullDelaysAndQuoting) {
   TempDir dir("cdtest-report");
   put(dir / "root/x/y/seed0", results("bc", "town-a-stopgo", {{"start_delay_median_s", 2.0}},
                                       "bc, target speed"));
@@ -206,22 +210,27 @@ TEST(ReportCli, NestedFoldersNullDelaysAndQuoting) {
                             {{"start_delay_median_s", nullptr}, {"start_delay_p90_s", nullptr},
                              {"stall_rate", nullptr}}));
   test::write_text(dir / "root/x/notes.json", "not json, and not a results.json");
-  const std::string csv = dir / "report.csv";
-  // The same folder twice (directly and through its parent) counts once.
-  CommandResult r = test::run_cli(
-      {"report", dir / "root", dir / "root/x", "--metrics", "stopgo", "--csv", csv});
-  ASSERT_EQ(r.exit_code, 0) << r.describe();
-  std::string csv_text = test::read_text(csv);
-  EXPECT_TRUE(has(csv_text, "\"bc, target speed\",town-a-stopgo,start_delay_median_s,3,"
-                            "1.41421356237,2\n"))
-      << csv_text;
-  EXPECT_TRUE(has(csv_text, "cim,town-a-stopgo,start_delay_median_s,,,0\n")) << csv_text;
-  std::vector<std::string> cim = cells(table_row(r.out, "Stop-and-go", "cim"));
-  ASSERT_EQ(cim.size(), 4u) << r.out;
+  // The same folder twice (directly and through its parent) counts once; paths sorted.
+  std::vector<std::string> files = find_result_files({dir / "root", dir / "root/x"});
+  EXPECT_EQ(files, (std::vector<std::string>{dir / "root/results.json",
+                                             dir / "root/x/seed1/results.json",
+                                             dir / "root/x/y/seed0/results.json"}));
+  std::vector<RunResult> runs;
+  for (const auto& f : files) runs.push_back(load_result(f));
+  ReportTable table = build_report(runs);
+  EXPECT_EQ(table.labels, (std::vector<std::string>{"cim", "bc, target speed"}));
+  std::vector<MetricSet> sets = parse_metric_sets("stopgo");
+  std::string csv = render_csv(table, sets);
+  EXPECT_TRUE(has(csv, "\"bc, target speed\",town-a-stopgo,start_delay_median_s,3,"
+                       "1.41421356237,2\n"))
+      << csv;
+  EXPECT_TRUE(has(csv, "cim,town-a-stopgo,start_delay_median_s,,,0\n")) << csv;
+  std::string md = render_markdown(table, sets);
+  std::vector<std::string> cim = cells(table_row(md, "Stop-and-go", "cim"));
+  ASSERT_EQ(cim.size(), 4u) << md;
   EXPECT_EQ(cim[1], "n/a") << "a run without events has no delay";
   EXPECT_EQ(cim[2], "n/a");
-  // root/results.json sorts before root/x/..., so cim is the first row.
-  EXPECT_LT(r.out.find("| cim "), r.out.find("| bc, target speed ")) << r.out;
+  EXPECT_LT(md.find("| cim "), md.find("| bc, target speed ")) << md;
 }
 
 TEST(ReportCli, MetricsAllIsDefault) {
@@ -236,10 +245,11 @@ TEST(ReportCli, MetricsAllIsDefault) {
   ASSERT_NE(s, std::string::npos) << r.out;
   EXPECT_LT(e, o);
   EXPECT_LT(o, s);
-  CommandResult two = test::run_cli({"report", dir / "run", "--metrics", "stopgo,error"});
-  ASSERT_EQ(two.exit_code, 0) << two.describe();
-  EXPECT_LT(two.out.find("## Stop-and-go"), two.out.find("## Error")) << two.out;
-  EXPECT_FALSE(has(two.out, "## Outcomes")) << two.out;
+  std::vector<RunResult> runs = {load_result(dir / "run/results.json")};
+  std::string two = render_markdown(build_report(runs), parse_metric_sets("stopgo,error,stopgo"));
+  EXPECT_LT(two.find("## Stop-and-go"), two.find("## Error")) << two;
+  EXPECT_EQ(two.find("## Stop-and-go"), two.rfind("## Stop-and-go")) << "each set once\n" << two;
+  EXPECT_FALSE(has(two, "## Outcomes")) << two;
 }
 
 TEST(ReportErrors, MissingFolder) {
@@ -272,17 +282,25 @@ TEST(ReportErrors, InvalidJson) {
 }
 
 TEST(ReportErrors, MissingKeys) {
+  TempDir dir("cdtest-report");
+  put(dir / "ok", results("bc", "s1"));
   for (const std::string key : {"agent", "suite", "summary"}) {
-    TempDir dir("cdtest-report");
-    put(dir / "ok", results("bc", "s1"));
     nlohmann::json j = results("bc", "s2");
     j.erase(key);
-    put(dir / "broken", j);
-    std::string line =
-        expect_one_line_error(test::run_cli({"report", dir.path()}), "without " + key);
-    EXPECT_TRUE(has(line, dir / "broken/results.json")) << line;
-    EXPECT_TRUE(has(line, "'" + key + "'")) << line;
+    put(dir / ("no-" + key), j);
+    const std::string file = dir / ("no-" + key + "/results.json");
+    try {
+      load_result(file);
+      ADD_FAILURE() << "no error without " << key;
+    } catch (const DataError& e) {
+      EXPECT_TRUE(has(e.what(), file)) << e.what();
+      EXPECT_TRUE(has(e.what(), "'" + key + "'")) << e.what();
+    }
   }
+  // Through the CLI: one line naming the first broken file (sorted: no-agent) and the key.
+  std::string line = expect_one_line_error(test::run_cli({"report", dir.path()}), "no agent");
+  EXPECT_TRUE(has(line, dir / "no-agent/results.json")) << line;
+  EXPECT_TRUE(has(line, "'agent'")) << line;
 }
 
 TEST(ReportErrors, BadSummaryValues) {
@@ -292,8 +310,16 @@ TEST(ReportErrors, BadSummaryValues) {
   EXPECT_TRUE(has(line, dir / "run/results.json")) << line;
   EXPECT_TRUE(has(line, "summary.inertia_rate")) << line;
   put(dir / "run", results("bc", "s1", {{"start_delay_p90_s", "slow"}}));
-  line = expect_one_line_error(test::run_cli({"report", dir / "run"}), "string delay");
-  EXPECT_TRUE(has(line, "summary.start_delay_p90_s")) << line;
+  EXPECT_THROW(
+      {
+        try {
+          load_result(dir / "run/results.json");
+        } catch (const DataError& e) {
+          EXPECT_TRUE(has(e.what(), "summary.start_delay_p90_s")) << e.what();
+          throw;
+        }
+      },
+      DataError);
 }
 
 TEST(ReportErrors, UnknownMetricsAndNoRunDir) {
