@@ -483,6 +483,19 @@ void World::insert_ego() {
       if (v != kEgo && v != kLeader && p > task_.start_pos - 60 && p < task_.start_pos + clear_ahead)
         libsumo::Vehicle::remove(v);
     }
+    // Cars still inside the junction before the start (entering the first edge) or on a
+    // neighbouring lane's sweep also keep SUMO from inserting there.
+    // SUMO inserts the cars of an edge in departure order: a background car waiting to be
+    // inserted would hold the ego back behind it.
+    for (const std::string& v : libsumo::Simulation::getPendingVehicles())
+      if (v != kEgo && v != kLeader) libsumo::Vehicle::remove(v);
+    const LaneGeom* g = edge_lane_.count(first) ? edge_lane_.at(first) : nullptr;
+    if (!g) return;
+    const Vec2 at = point_at(*g, std::min(task_.start_pos, g->length));
+    for (const std::string& v : libsumo::Vehicle::getIDList()) {
+      if (v == kEgo || v == kLeader) continue;
+      if ((to_vec(libsumo::Vehicle::getPosition(v)) - at).norm() < 25.0) libsumo::Vehicle::remove(v);
+    }
   };
   sumo_call("cannot insert the ego vehicle", [&] {
     clear_start();
