@@ -1,10 +1,74 @@
-// PLACEHOLDER (owner: learn) — replaced by the real 'train' subcommand.
+#include <cstdio>
+#include <memory>
+
 #include "cli/commands.hpp"
-#include "core/error.hpp"
+#include "cli/common.hpp"
+#include "core/progress.hpp"
+#include "learn/checkpoint.hpp"
+#include "learn/trainer.hpp"
+
 namespace cd::cli {
-void add_train(CLI::App& app) {
-  auto* sub = app.add_subcommand("train", "(in progress)");
-  sub->allow_extras();
-  sub->callback([] { throw Error("'train' is not implemented yet"); });
+
+namespace {
+
+struct TrainArgs {
+  std::string config, method, data, out, device;
+  int epochs = 0, threads = 0;
+  long max_samples = -1;
+  int64_t seed = -1;
+};
+
+void print_train_summary(const TrainSummary& s) {
+  std::printf("trained %s in %s: %d epochs", s.method.c_str(), s.out_dir.c_str(), s.epochs_done);
+  if (s.resumed_from > 0) std::printf(" (%d were done before this run)", s.resumed_from);
+  std::printf("\n  samples: %ld train (%d episodes), %ld validation (%d episodes)\n",
+              s.train_samples, s.train_episodes, s.val_samples, s.val_episodes);
+  std::printf("  best epoch %d, %s loss %.5f -> %s/%s\n", s.best_epoch,
+              s.has_validation ? "validation" : "training", s.best_loss, s.out_dir.c_str(),
+              kBestFile);
+  if (s.samples_per_s > 0)
+    std::printf("  time %s on %s, %.0f samples/s\n", format_duration(s.seconds).c_str(),
+                s.device.c_str(), s.samples_per_s);
+  else
+    std::printf("  nothing left to train (train.epochs = %d already done)\n", s.epochs_done);
 }
+
+}  // namespace
+
+void add_train(CLI::App& app) {
+  auto args = std::make_shared<TrainArgs>();
+  CLI::App* sub = app.add_subcommand(
+      "train", "train a behaviour-cloning policy (bc-so, bc-oh) on recorded expert episodes");
+  sub->add_option("--config,-c", args->config, "TOML config (default: built-in quickstart)");
+  sub->add_option("--method,-m", args->method, "bc-so | bc-oh")->required();
+  sub->add_option("--data,-d", args->data, "data folder of `causaldrive collect` (collect.out)");
+  sub->add_option("--out,-o", args->out,
+                  "checkpoint folder (train.out); a rerun resumes from its last finished epoch");
+  sub->add_option("--epochs", args->epochs, "epochs in total (train.epochs)")
+      ->check(CLI::PositiveNumber);
+  sub->add_option("--max-samples", args->max_samples,
+                  "keep a seeded subset of this many samples, 0 = all (train.max_samples)")
+      ->check(CLI::NonNegativeNumber);
+  sub->add_option("--seed", args->seed, "seed of weights, split and shuffling (train.seed)")
+      ->check(CLI::NonNegativeNumber);
+  sub->add_option("--threads", args->threads, "torch threads (train.threads)")
+      ->check(CLI::PositiveNumber);
+  sub->add_option("--device", args->device, "cpu | cuda | auto (train.device)")
+      ->check(CLI::IsMember({"cpu", "cuda", "auto"}));
+  sub->callback([args] {
+    Settings s = settings_from(args->config);
+    if (args->epochs > 0) s.train.epochs = args->epochs;
+    if (args->max_samples >= 0) s.train.max_samples = args->max_samples;
+    if (args->seed >= 0) s.train.seed = static_cast<uint64_t>(args->seed);
+    if (args->threads > 0) s.train.threads = args->threads;
+    if (!args->device.empty()) s.train.device = args->device;
+    if (!args->out.empty()) s.train.out = args->out;
+    TrainRequest req;
+    req.method = args->method;
+    req.data_dir = args->data.empty() ? s.collect.out : args->data;
+    req.out_dir = s.train.out;
+    print_train_summary(train_policy(s, req));
+  });
+}
+
 }  // namespace cd::cli

@@ -191,13 +191,20 @@ std::string pending_name(const std::string& final_name, int epoch) {
 }
 
 int settle_pending_files(const std::string& dir, int committed) {
+  // Only names this code writes are touched: an --out folder may hold the user's own files.
+  auto ours = [](const std::string& name) {
+    for (const char* f : {kModelFile, kBestFile, kOptimizerFile, kCheckpointJson, kMetricsJsonl})
+      if (name.rfind(std::string(f) + ".", 0) == 0) return true;
+    return false;
+  };
   int rolled = 0;
   std::error_code ec;
   std::vector<fs::path> entries;
   for (const auto& e : fs::directory_iterator(dir, ec)) entries.push_back(e.path());
   for (const fs::path& p : entries) {
     const std::string name = p.filename().string();
-    if (name.size() > 4 && name.ends_with(".tmp")) {  // an unfinished atomic write
+    if (!ours(name)) continue;
+    if (name.ends_with(".tmp")) {  // an unfinished atomic write
       fs::remove(p, ec);
       continue;
     }

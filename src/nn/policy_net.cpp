@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <sstream>
+#include <utility>
+#include <vector>
 
 #include "core/error.hpp"
 
@@ -45,15 +47,17 @@ SmallBackboneImpl::SmallBackboneImpl(int in_channels, int height, int width, int
   if (height < 16 || width < 16)
     throw ConfigError("the small backbone needs BEV frames of at least 16x16 pixels (got " +
                       std::to_string(height) + "x" + std::to_string(width) + ")");
+  // Patchify stem and 2x2/stride-2 downsampling (as in ConvNeXt): at batch 1 a 3x3 convolution
+  // on these small maps costs about twice as much for the same output size.
   convs = nn::Sequential(
       conv(in_channels, 32, 4, 4, 0, false), nn::BatchNorm2d(32), nn::ReLU(),
-      conv(32, 64, 3, 2, 1, false), nn::BatchNorm2d(64), nn::ReLU(),
-      conv(64, 128, 3, 2, 1, false), nn::BatchNorm2d(128), nn::ReLU(),
+      conv(32, 64, 2, 2, 0, false), nn::BatchNorm2d(64), nn::ReLU(),
+      conv(64, 128, 2, 2, 0, false), nn::BatchNorm2d(128), nn::ReLU(),
       // Squeezing the channels before the flatten keeps the dense layer small: at batch 1
       // (closed loop) its weights, not the arithmetic, set the inference time.
       conv(128, 32, 1, 1, 0, false), nn::BatchNorm2d(32), nn::ReLU());
-  int h = conv_out(conv_out(conv_out(height, 4, 4, 0), 3, 2, 1), 3, 2, 1);
-  int w = conv_out(conv_out(conv_out(width, 4, 4, 0), 3, 2, 1), 3, 2, 1);
+  int h = conv_out(conv_out(conv_out(height, 4, 4, 0), 2, 2, 0), 2, 2, 0);
+  int w = conv_out(conv_out(conv_out(width, 4, 4, 0), 2, 2, 0), 2, 2, 0);
   fc = nn::Linear(32 * h * w, features);
   register_module("convs", convs);
   register_module("fc", fc);
@@ -168,6 +172,11 @@ std::string save_module_bytes(nn::Module& module) {
 
 void load_module_bytes(nn::Module& module, const std::string& bytes, const torch::Device& device,
                        const std::string& what) {
+  // torch's Module::load replaces each tensor whatever its shape: the shapes are checked here.
+  std::vector<std::pair<std::string, std::vector<int64_t>>> shapes;
+  for (const auto& p : module.named_parameters()) shapes.emplace_back(p.key(), p.value().sizes().vec());
+  for (const auto& b : module.named_buffers()) shapes.emplace_back(b.key(), b.value().sizes().vec());
+  const std::string hint = "; was it written by another version or with other model settings?";
   try {
     std::istringstream is(bytes);
     torch::serialize::InputArchive archive;
@@ -175,9 +184,18 @@ void load_module_bytes(nn::Module& module, const std::string& bytes, const torch
     module.load(archive);
   } catch (const c10::Error& e) {
     std::string msg = e.what_without_backtrace();
-    throw DataError(what + " does not fit this network (" + msg.substr(0, msg.find('\n')) +
-                    "); was it written by another version or settings?");
+    throw DataError(what + " does not fit this network (" + msg.substr(0, msg.find('\n')) + ")" +
+                    hint);
   }
+  size_t i = 0;
+  auto check = [&](const std::string& key, const torch::Tensor& t) {
+    if (i >= shapes.size() || shapes[i].first != key || shapes[i].second != t.sizes().vec())
+      throw DataError(what + " does not fit this network (tensor '" + key + "' has another shape)" +
+                      hint);
+    ++i;
+  };
+  for (const auto& p : module.named_parameters()) check(p.key(), p.value());
+  for (const auto& b : module.named_buffers()) check(b.key(), b.value());
 }
 
 }  // namespace cd

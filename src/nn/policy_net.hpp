@@ -37,10 +37,11 @@ struct PolicyOutput {
   torch::Tensor speed;   // B x 1, predicted ego speed (m/s); undefined when not asked for
 };
 
-// Five stages for 64x64 inputs: a 4x4/stride-4 patch convolution (the input has K*C planes,
-// so a first layer at full resolution would cost most of the budget), two 3x3/stride-2
-// convolutions, a 1x1 squeeze, and a fully connected layer to `features`. BatchNorm + ReLU
-// after every convolution. About 1.5 M multiply-adds per 8-plane frame stacked.
+// Five stages, sized for 64x64 inputs on a CPU: a 4x4/stride-4 patch convolution (the input
+// has K*C planes, so a first layer at full resolution would cost most of the budget), two
+// 2x2/stride-2 convolutions (64 -> 16 -> 8 -> 4 pixels), a 1x1 squeeze to 32 channels, and a
+// fully connected layer to `features`; BatchNorm + ReLU after every convolution. About
+// 1 M multiply-adds per stacked 8-plane frame plus 1.2 M for the rest of the backbone.
 struct SmallBackboneImpl : torch::nn::Module {
   SmallBackboneImpl(int in_channels, int height, int width, int features);
   torch::Tensor forward(torch::Tensor x);

@@ -1,0 +1,237 @@
+// `causaldrive train` and `causaldrive probe` through the real binary: output files, resume
+// after kill -9 with identical bytes, error paths, the probe's JSON.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+
+#include <chrono>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "learn/probe.hpp"
+#include "learn_data.hpp"
+
+namespace cd {
+namespace {
+
+using nlohmann::json;
+using test::CommandResult;
+using test::TempDir;
+
+std::vector<std::string> train_args(const std::string& config, const std::string& method,
+                                    const std::string& data, const std::string& out,
+                                    std::vector<std::string> more = {}) {
+  std::vector<std::string> args = {"train", "--config", config, "--method", method,
+                                   "--data", data, "--out", out};
+  args.insert(args.end(), more.begin(), more.end());
+  return args;
+}
+
+// Exit code 1 and exactly one line on stderr, containing `needle`.
+void expect_one_line_error(const CommandResult& r, const std::string& needle) {
+  EXPECT_TRUE(r.exited && r.exit_code == 1) << r.describe();
+  auto lines = test::split_lines(r.err);
+  EXPECT_EQ(lines.size(), 1u) << r.describe();
+  EXPECT_NE(r.err.find(needle), std::string::npos) << r.describe();
+}
+
+std::vector<json> read_jsonl(const std::string& path) {
+  std::vector<json> out;
+  for (const auto& line : test::split_lines(test::read_text(path))) out.push_back(json::parse(line));
+  return out;
+}
+
+struct Fixture {
+  TempDir dir{"cd-learn-cli"};
+  std::string config, data;
+  explicit Fixture(int episodes = 3, int frames = 40, int epochs = 2) {
+    config = dir / "learn.toml";
+    test::write_text(config, test::learn_config_toml(epochs));
+    data = dir / "data";
+    test::write_fake_folder(data, episodes, {.frames = frames});
+  }
+};
+
+TEST(TrainCli, WritesTheCheckpointFolder) {
+  Fixture f;
+  const std::string out = f.dir / "ck";
+  CommandResult r = test::run_cli(train_args(f.config, "bc-oh", f.data, out));
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  EXPECT_NE(r.out.find("trained bc-oh"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("best epoch"), std::string::npos) << r.out;
+  EXPECT_EQ(test::list_dir(out), (std::vector<std::string>{"best.pt", "checkpoint.json",
+                                                           "metrics.jsonl", "model.pt",
+                                                           "optimizer.pt"}));
+  json ck = json::parse(test::read_text(out + "/checkpoint.json"));
+  EXPECT_EQ(ck["method"], "bc-oh");
+  EXPECT_EQ(ck["epochs_done"], 2);
+  EXPECT_EQ(ck["settings"]["model"]["history"], 3);
+  EXPECT_EQ(ck["settings"]["model"]["features"], 32);
+  EXPECT_EQ(ck["input"]["history"], 3);
+  EXPECT_EQ(ck["input"]["channels"], 8);
+  EXPECT_EQ(ck["episodes"]["val"], 1);
+  EXPECT_EQ(ck["samples"]["train"], 2 * (40 - 4));
+  EXPECT_EQ(ck["samples"]["val"], 40 - 4);
+  EXPECT_GE(ck["best_epoch"].get<int>(), 1);
+  ASSERT_EQ(ck["metrics"].size(), 2u);
+  auto lines = read_jsonl(out + "/metrics.jsonl");
+  ASSERT_EQ(lines.size(), 2u);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_EQ(lines[i]["epoch"], i + 1);
+    for (const char* key : {"train_loss", "val_loss", "lr", "seconds", "samples_per_s"})
+      EXPECT_TRUE(lines[i][key].is_number()) << key << " in " << lines[i].dump();
+    EXPECT_EQ(lines[i], ck["metrics"][i]);
+  }
+
+  // Rerunning the finished command trains nothing and changes no weights.
+  const std::string model = test::read_text(out + "/model.pt");
+  CommandResult again = test::run_cli(train_args(f.config, "bc-oh", f.data, out));
+  ASSERT_TRUE(again.exited && again.exit_code == 0) << again.describe();
+  EXPECT_NE(again.out.find("nothing left to train"), std::string::npos) << again.out;
+  EXPECT_EQ(test::read_text(out + "/model.pt"), model);
+  EXPECT_EQ(read_jsonl(out + "/metrics.jsonl").size(), 2u);
+
+  // More epochs continue the same folder.
+  CommandResult more = test::run_cli(train_args(f.config, "bc-oh", f.data, out, {"--epochs", "3"}));
+  ASSERT_TRUE(more.exited && more.exit_code == 0) << more.describe();
+  EXPECT_EQ(read_jsonl(out + "/metrics.jsonl").size(), 3u);
+}
+
+// Reads epochs_done from checkpoint.json, -1 while there is none.
+int epochs_done(const std::string& dir) {
+  std::error_code ec;
+  if (!test::fs::exists(dir + "/checkpoint.json", ec)) return -1;
+  try {
+    return json::parse(test::read_text(dir + "/checkpoint.json"))["epochs_done"].get<int>();
+  } catch (const std::exception&) {
+    return -1;
+  }
+}
+
+TEST(TrainCli, KillNineMidRunThenResumeGivesTheSameBytes) {
+  Fixture f(4, 120, 3);
+  const std::string straight = f.dir / "straight", killed = f.dir / "killed";
+  CommandResult r = test::run_cli(train_args(f.config, "bc-oh", f.data, straight));
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+
+  std::vector<std::string> argv = {CD_BINARY};
+  for (const auto& a : train_args(f.config, "bc-oh", f.data, killed)) argv.push_back(a);
+  pid_t pid = test::spawn_group(argv, f.dir / "killed.out", f.dir / "killed.err");
+  auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  int status = 0;
+  bool exited_early = false;
+  while (epochs_done(killed) < 1) {
+    if (::waitpid(pid, &status, WNOHANG) == pid) {
+      exited_early = true;
+      break;
+    }
+    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "no epoch committed in time";
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  ASSERT_FALSE(exited_early) << "train finished before it could be killed: "
+                             << test::read_text(f.dir / "killed.err");
+  ::kill(-pid, SIGKILL);
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFSIGNALED(status));
+  const int done_at_kill = epochs_done(killed);
+  EXPECT_GE(done_at_kill, 1);
+  EXPECT_LT(done_at_kill, 3) << "killed after the last epoch: the resume is not exercised";
+
+  CommandResult resumed = test::run_cli(train_args(f.config, "bc-oh", f.data, killed));
+  ASSERT_TRUE(resumed.exited && resumed.exit_code == 0) << resumed.describe();
+  EXPECT_NE(resumed.err.find("resuming"), std::string::npos) << resumed.err;
+
+  auto lines = read_jsonl(killed + "/metrics.jsonl");
+  ASSERT_EQ(lines.size(), 3u);
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(lines[i]["epoch"], i + 1);
+  auto ref = read_jsonl(straight + "/metrics.jsonl");
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(lines[i]["train_loss"], ref[i]["train_loss"]) << "epoch " << i + 1;
+    EXPECT_EQ(lines[i]["val_loss"], ref[i]["val_loss"]) << "epoch " << i + 1;
+  }
+  EXPECT_TRUE(test::read_text(killed + "/model.pt") == test::read_text(straight + "/model.pt"))
+      << "model.pt of the resumed run differs from the uninterrupted run's";
+  EXPECT_TRUE(test::read_text(killed + "/best.pt") == test::read_text(straight + "/best.pt"));
+  for (const auto& name : test::list_dir(killed))
+    EXPECT_FALSE(test::ends_with(name, ".pending") || test::ends_with(name, ".tmp")) << name;
+}
+
+TEST(TrainCli, ErrorsAreOneLine) {
+  Fixture f(2, 20);
+  expect_one_line_error(test::run_cli(train_args(f.config, "bc-oh", f.dir / "nope", f.dir / "o1")),
+                        "not found");
+  expect_one_line_error(test::run_cli(train_args(f.config, "bc-xx", f.data, f.dir / "o2")),
+                        "unknown method 'bc-xx'");
+  expect_one_line_error(test::run_cli(train_args(f.config, "cim", f.data, f.dir / "o3")),
+                        "method 'cim' is not available in this version (available: bc-so, bc-oh)");
+  test::write_fake_folder(f.dir / "empty", 0);
+  expect_one_line_error(test::run_cli(train_args(f.config, "bc-oh", f.dir / "empty", f.dir / "o4")),
+                        "no episode_");
+
+  // A folder holding another method's checkpoint, or one trained with other settings.
+  const std::string out = f.dir / "so";
+  CommandResult r = test::run_cli(train_args(f.config, "bc-so", f.data, out, {"--epochs", "1"}));
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  expect_one_line_error(test::run_cli(train_args(f.config, "bc-oh", f.data, out)),
+                        "method 'bc-so', not 'bc-oh'");
+  expect_one_line_error(test::run_cli(train_args(f.config, "bc-so", f.data, out, {"--seed", "5"})),
+                        "train.seed 0 -> 5");
+}
+
+TEST(ProbeCli, ReportsTheHistoryEffect) {
+  Fixture f(3, 40, 1);
+  const std::string oh = f.dir / "oh", so = f.dir / "so";
+  CommandResult r = test::run_cli(train_args(f.config, "bc-oh", f.data, oh));
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  CommandResult p = test::run_cli({"probe", "--checkpoint", oh, "--data", f.data, "--json"});
+  ASSERT_TRUE(p.exited && p.exit_code == 0) << p.describe();
+  json j = json::parse(p.out);
+  for (const char* key : {"method", "history", "history_stride", "output", "moving_speed",
+                          "frames", "stopped_frames", "probed_frames", "path_free", "blocked"})
+    EXPECT_TRUE(j.contains(key)) << key;
+  EXPECT_EQ(j["method"], "bc-oh");
+  EXPECT_EQ(j["history"], 3);
+  EXPECT_EQ(j["output"], "throttle_minus_brake");
+  EXPECT_EQ(j["frames"], 3 * 40);
+  // Stopped (speed < 0.5): t % 20 in {0, 1}, with t >= 4: t = 20, 21 in each episode.
+  EXPECT_EQ(j["stopped_frames"], 3 * 2);
+  EXPECT_EQ(j["path_free"]["count"], 3);  // t = 20 (even)
+  EXPECT_EQ(j["blocked"]["count"], 3);    // t = 21
+  for (const char* group : {"path_free", "blocked"})
+    for (const char* key : {"mean_real", "mean_moving", "mean_static", "history_effect",
+                            "moving_minus_static"})
+      EXPECT_TRUE(j[group][key].is_number()) << group << "." << key;
+  EXPECT_GE(j["path_free"]["history_effect"].get<double>(), 0.0);
+
+  CommandResult limited =
+      test::run_cli({"probe", "--checkpoint", oh, "--data", f.data, "--max-frames", "2", "--json"});
+  ASSERT_TRUE(limited.exited && limited.exit_code == 0) << limited.describe();
+  EXPECT_EQ(json::parse(limited.out)["probed_frames"], 2);
+
+  CommandResult table = test::run_cli({"probe", "--checkpoint", oh, "--data", f.data});
+  ASSERT_TRUE(table.exited && table.exit_code == 0) << table.describe();
+  EXPECT_NE(table.out.find("|moving-static|"), std::string::npos) << table.out;
+
+  ASSERT_EQ(test::run_cli(train_args(f.config, "bc-so", f.data, so)).exit_code, 0);
+  expect_one_line_error(test::run_cli({"probe", "--checkpoint", so, "--data", f.data}),
+                        "needs a history policy such as bc-oh");
+}
+
+TEST(Probe, MovingHistoryShiftsTheSceneUp) {
+  // 1 channel, 4 rows of 2 pixels: rows hold 1, 2, 3, 4.
+  const unsigned char cur[8] = {1, 1, 2, 2, 3, 3, 4, 4};
+  unsigned char out[8];
+  shift_frame_up(cur, 1, 4, 2, 1, out);
+  EXPECT_EQ(std::vector<unsigned char>(out, out + 8),
+            (std::vector<unsigned char>{2, 2, 3, 3, 4, 4, 0, 0}));
+  shift_frame_up(cur, 1, 4, 2, 0, out);
+  EXPECT_EQ(std::vector<unsigned char>(out, out + 8), std::vector<unsigned char>(cur, cur + 8));
+  shift_frame_up(cur, 1, 4, 2, 9, out);
+  EXPECT_EQ(std::vector<unsigned char>(out, out + 8), std::vector<unsigned char>(8, 0));
+}
+
+}  // namespace
+}  // namespace cd
