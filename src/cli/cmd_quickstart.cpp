@@ -3,6 +3,8 @@
 
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
+#include "bench/report.hpp"
+#include "bench/runner.hpp"
 #include "collect/collect.hpp"
 #include "world/town.hpp"
 
@@ -12,7 +14,7 @@ void add_quickstart(CLI::App& app) {
   auto config = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   CLI::App* sub = app.add_subcommand(
-      "quickstart", "the main job: generate the towns, record expert demonstrations, summarise");
+      "quickstart", "the main job: generate the towns, record expert demonstrations, evaluate the expert and the constant-speed baseline");
   sub->add_option("--config,-c", *config, "TOML config (default: built-in quickstart)");
   sub->add_option("--out,-o", *out, "data folder (collect.out)");
   sub->callback([config, out] {
@@ -36,6 +38,25 @@ void add_quickstart(CLI::App& app) {
                 100.0 * n["timeout"] / total);
     std::printf("\ndata: %s (one HDF5 file per episode, see README 'Data format')\n",
                 s.collect.out.c_str());
+
+    // The closed-loop benchmark on the quickstart suite: the expert and the constant-speed
+    // baseline (the collision upper bound).
+    const std::string eval_root = s.eval.out;
+    std::vector<std::string> runs;
+    for (const char* agent : {"expert", "cs"}) {
+      Settings e = s;
+      e.eval.out = eval_root + "/" + agent;
+      std::printf("\nevaluating %s on suite %s -> %s\n", agent, e.eval.suite.c_str(),
+                  e.eval.out.c_str());
+      std::fflush(stdout);
+      run_eval(e, EvalRequest{agent, "", "", false});
+      runs.push_back(e.eval.out);
+    }
+    std::vector<RunResult> results;
+    for (const auto& f : find_result_files(runs)) results.push_back(load_result(f));
+    std::printf("\n%s", render_markdown(build_report(results), parse_metric_sets("outcomes,stopgo")).c_str());
+    std::printf("\nresults: %s/<agent>/results.json; `causaldrive report %s` prints the tables again\n",
+                eval_root.c_str(), eval_root.c_str());
   });
 }
 
