@@ -86,7 +86,7 @@ void inject_crash(int index, const std::string& out) {
 }  // namespace
 
 EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Settings& settings,
-                          LoopStats* stats) {
+                          LoopStats* stats, std::string* trace_csv) {
   const double dt = settings.world.dt;
   world.reset(task);
   agent.begin_episode();
@@ -136,6 +136,18 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
     obs.speed = world.ego().speed;
     obs.command = world.command();
     Control c = agent.act(obs, world);
+    if (trace_csv) {
+      const GroundTruth& gt = world.truth();
+      char line[256];
+      std::snprintf(line, sizeof line, "%.1f,%.3f,%d,%d,%.2f,%.2f,%d,%.3f,%.3f,%.3f\n",
+                    world.time(), world.ego().speed, int(gt.path_free), gt.tl_state,
+                    gt.tl_state ? gt.tl_distance : -1.0, gt.lead_present ? gt.lead_distance : -1.0,
+                    obs.command, c.throttle, c.brake, agent.last_target_speed());
+      if (trace_csv->empty())
+        *trace_csv = "time_s,speed,path_free,tl_state,tl_distance,lead_distance,command,"
+                     "throttle,brake,target_speed\n";
+      *trace_csv += line;
+    }
     sr = world.step(c);
     ++n;
     r.red_light_violations += sr.ran_red_light;
@@ -230,7 +242,13 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
     // The agent is made after the fork: each episode starts from the same agent state.
     auto agent = make_agent(req.agent, req.checkpoint, settings);
     LoopStats stats;
-    EpisodeResult r = run_episode(*world, *agent, task_of(i), settings, &stats);
+    std::string trace;
+    EpisodeResult r = run_episode(*world, *agent, task_of(i), settings, &stats,
+                                  req.trace ? &trace : nullptr);
+    if (req.trace) {
+      std::string name = episode_record_name(i);
+      write_file_atomic(ep_dir + "/" + name.substr(0, name.size() - 5) + ".trace.csv", trace);
+    }
     r.index = i;
     r.task = i / trials;
     r.trial = i % trials;

@@ -19,6 +19,7 @@ struct EvalRequest {
   std::string checkpoint;  // for learned agents
   std::string label;       // row name in tables; default: the agent name
   bool quiet = false;
+  bool trace = false;      // also write a per-step CSV beside each episode record
 };
 
 struct EvalReport {
@@ -37,9 +38,11 @@ struct LoopStats {
 
 // One episode of `agent` on `task` (with the trial's traffic seed already in it) in `world`:
 // holds the ego still for the history prefill, then lets the agent drive until success,
-// collision or timeout, and classifies the outcome.
+// collision or timeout, and classifies the outcome. With trace_csv, appends one CSV line per
+// agent step (time, speed, path free, light state and distance, lead distance, command,
+// throttle, brake, target speed).
 EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Settings& settings,
-                          LoopStats* stats = nullptr);
+                          LoopStats* stats = nullptr, std::string* trace_csv = nullptr);
 
 // Runs the suite settings.eval.suite into settings.eval.out (settings.world.town and traffic
 // are taken from the suite). Throws ConfigError when the folder holds another run.

@@ -14,7 +14,7 @@ namespace {
 struct EvalArgs {
   std::string config, agent, checkpoint, suite, out, label;
   int workers = 0, trials = 0;
-  bool list = false, quiet = false;
+  bool list = false, quiet = false, trace = false;
 };
 
 void list_suites() {
@@ -47,6 +47,9 @@ void add_eval(CLI::App& app) {
   sub->add_option("--label", a->label, "row name in tables (default: the agent name)");
   sub->add_flag("--list-suites", a->list, "list the built-in suites and agents");
   sub->add_flag("--quiet,-q", a->quiet, "no progress output");
+  sub->add_flag("--trace", a->trace,
+                "also write episodes/episode_NNNNNN.trace.csv: one line per step (speed, path "
+                "free, light, leader, command, controls)");
   sub->callback([a] {
     if (a->list) return list_suites();
     if (a->agent.empty()) throw ConfigError("eval needs --agent NAME (see --list-suites)");
@@ -55,7 +58,7 @@ void add_eval(CLI::App& app) {
     if (a->workers > 0) s.eval.workers = a->workers;
     if (a->trials > 0) s.eval.trials = a->trials;
     if (!a->out.empty()) s.eval.out = a->out;
-    EvalRequest req{a->agent, a->checkpoint, a->label, a->quiet};
+    EvalRequest req{a->agent, a->checkpoint, a->label, a->quiet, a->trace};
     EvalReport r = run_eval(s, req);
     std::printf("%s", results_table(r.results).c_str());
     std::printf("results: %s/results.json (%d episodes run now", s.eval.out.c_str(), r.run_now);

@@ -581,7 +581,10 @@ StepResult World::step(const Control& c) {
     advance();
     // The ego is part of its own context subscription: absent from it means gone.
     nearby_ = libsumo::Vehicle::getContextSubscriptionResults(kEgo);
-    present = nearby_.count(kEgo) > 0;
+    // SUMO teleports a car that stood --time-to-teleport seconds; the ego may come back
+    // further along within the same step, so the teleport itself ends its episode.
+    present = nearby_.count(kEgo) > 0 &&
+              !contains(libsumo::Simulation::getStartingTeleportIDList(), kEgo);
   });
   StepResult r;
   sumo_call("reading the simulation failed", [&] { r = check_events(present); });

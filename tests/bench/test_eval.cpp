@@ -83,6 +83,34 @@ TEST(BenchEpisode, StoppedAtRedIsATimeoutWithoutEvents) {
   EXPECT_TRUE(r.events.empty());
 }
 
+// SUMO teleports a car that stood 90 s, and may put it back further along in the same step:
+// for the ego that ends the episode where it stood (before this was handled, a frozen policy
+// reappeared beyond the junction and "succeeded").
+TEST(BenchEpisode, StandingUntilSumoTeleportsTheEgoEndsTheEpisodeWhereItStood) {
+  Settings s = test_settings();
+  World world(s);
+  BrakeAgent agent;
+  // A free road: inertia when SUMO gives up on the ego.
+  Task road = world.sample_scenario_task(11, "route", 150, 300);
+  road.timeout_s = 300;
+  EpisodeResult r = run_episode(world, agent, road, s);
+  EXPECT_EQ(r.outcome, "inertia");
+  EXPECT_LT(r.duration_s, 95.0);
+  EXPECT_LT(r.distance_m, 0.5);
+  // First at a light that turns green and back to red while the ego stands: a stalled
+  // stop-and-go event that never started, and a timeout (the light blocks the last seconds).
+  Task light = world.sample_scenario_task(13, "red_light", 150, 300);
+  light.timeout_s = 300;
+  r = run_episode(world, agent, light, s);
+  EXPECT_EQ(r.outcome, "timeout");
+  EXPECT_LT(r.duration_s, 95.0);
+  EXPECT_LT(r.distance_m, 0.5);
+  ASSERT_EQ(r.events.size(), 1u);
+  EXPECT_EQ(r.events[0].kind, "freed");
+  EXPECT_TRUE(r.events[0].stall);
+  EXPECT_FALSE(r.events[0].started);
+}
+
 TEST(BenchEpisode, LeaderDrivesOffAndTheExpertFollows) {
   Settings s = test_settings();
   World world(s);
