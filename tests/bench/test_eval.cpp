@@ -360,3 +360,39 @@ TEST(BenchEval, BadRequestsGiveOneLineAndExitOne) {
 
 }  // namespace
 }  // namespace cd
+
+namespace cd {
+namespace {
+
+// A learned agent end to end: collect, train a tiny bc-oh, evaluate it twice (different
+// worker counts): the runner feeds it real-frame histories and the results are reproducible.
+TEST(BenchEval, LearnedAgentEvaluatesReproducibly) {
+  TempDir dir("cdtest-eval");
+  const std::string cfg = test::write_test_config(
+      dir, "regular", "\n[train]\nepochs = 1\nmax_samples = 300\nthreads = 1\n"
+                      "\n[model]\naction_head = \"target_speed\"\n");
+  auto c = test::run_cli({"collect", "--config", cfg, "--out", dir / "data"});
+  ASSERT_EQ(c.exit_code, 0) << c.describe();
+  auto t = test::run_cli({"train", "--config", cfg, "--method", "bc-oh", "--data", dir / "data",
+                          "--out", dir / "ckpt"});
+  ASSERT_EQ(t.exit_code, 0) << t.describe();
+  std::vector<std::string> args = {"eval", "--config", cfg, "--agent", "bc-oh", "--checkpoint",
+                                   dir / "ckpt", "--suite", "quickstart", "--quiet"};
+  auto run = [&](const std::string& out, const std::string& workers) {
+    std::vector<std::string> a = args;
+    a.insert(a.end(), {"--out", out, "--workers", workers});
+    return test::run_cli(a);
+  };
+  auto a = run(dir / "a", "1");
+  auto b = run(dir / "b", "2");
+  ASSERT_EQ(a.exit_code, 0) << a.describe();
+  ASSERT_EQ(b.exit_code, 0) << b.describe();
+  nlohmann::json res = read_json(dir / "a/results.json");
+  EXPECT_EQ(res["agent"], "bc-oh");
+  EXPECT_EQ(res["summary"]["episodes"], 4);
+  EXPECT_EQ(res["summary"]["infrastructure_failures"], 0);
+  EXPECT_EQ(test::read_text(dir / "a/results.json"), test::read_text(dir / "b/results.json"));
+}
+
+}  // namespace
+}  // namespace cd
