@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 
 namespace cd {
@@ -189,9 +190,7 @@ std::vector<std::string> find_result_files(const std::vector<std::string>& run_d
 }
 
 RunResult load_result(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw IoError("cannot read " + path);
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string text = read_file_bytes(path);
   nlohmann::json doc;
   try {
     doc = nlohmann::json::parse(text);

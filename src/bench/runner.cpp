@@ -32,19 +32,12 @@ std::string episode_record_name(int index) {
   return name;
 }
 
-std::string read_all(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 // A finished episode's record, or nothing when it is missing or damaged (run again).
 bool load_record(const std::string& path, EpisodeResult* out) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) return false;
   try {
-    *out = episode_from_json(nlohmann::json::parse(read_all(path)));
+    *out = episode_from_json(nlohmann::json::parse(read_file_bytes(path)));
     return true;
   } catch (const std::exception&) {
     return false;
@@ -206,7 +199,7 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
   if (fs::exists(run_path)) {
     nlohmann::json prev;
     try {
-      prev = nlohmann::json::parse(read_all(run_path));
+      prev = nlohmann::json::parse(read_file_bytes(run_path));
     } catch (const std::exception&) {
       throw DataError(run_path + " is damaged; remove it or use another --out");
     }

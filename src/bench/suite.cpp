@@ -2,11 +2,10 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 
 #include <nlohmann/json.hpp>
 
+#include "core/atomic_file.hpp"
 #include "core/embedded.hpp"
 #include "core/error.hpp"
 #include "core/rng.hpp"
@@ -158,10 +157,7 @@ Suite load_suite(const std::string& name_or_path) {
       throw ConfigError("unknown suite '" + name_or_path + "': not a built-in suite (" + known +
                         ") nor a suite file");
     }
-    std::ifstream in(name_or_path, std::ios::binary);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    text = ss.str();
+    text = read_file_bytes(name_or_path);
     where = name_or_path;
   }
   nlohmann::json j;

@@ -14,4 +14,7 @@ void commit_temp_file(const std::string& tmp, const std::string& final_path);
 // Writes `content` atomically to `path`. Throws IoError.
 void write_file_atomic(const std::string& path, const std::string& content);
 
+// The whole content of a file. Throws IoError when it cannot be read.
+std::string read_file_bytes(const std::string& path);
+
 }  // namespace cd

@@ -5,6 +5,7 @@
 #include <fstream>
 #include <iterator>
 
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 
 namespace cd {
@@ -60,12 +61,6 @@ ModelSettings model_from_json(const json& j, const std::string& where) {
 }
 
 }  // namespace
-
-std::string read_file_bytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw IoError("cannot read " + path);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
 
 json checkpoint_to_json(const Checkpoint& c) {
   json metrics = json::array();

@@ -82,7 +82,4 @@ std::string pending_name(const std::string& final_name, int epoch);
 // leftover temporary files. Returns how many were rolled forward.
 int settle_pending_files(const std::string& dir, int committed);
 
-// Reads a whole file (IoError when it cannot).
-std::string read_file_bytes(const std::string& path);
-
 }  // namespace cd

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "nn/policy_net.hpp"
 
