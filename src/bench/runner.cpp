@@ -44,14 +44,6 @@ bool load_record(const std::string& path, EpisodeResult* out) {
   }
 }
 
-void remove_temporaries(const std::string& dir) {
-  std::error_code ec;
-  for (const auto& e : fs::directory_iterator(dir, ec)) {
-    const std::string name = e.path().filename().string();
-    if (name.size() > 4 && name.compare(name.size() - 4, 4, ".tmp") == 0) fs::remove(e.path(), ec);
-  }
-}
-
 std::string fmt(const char* f, double x) {
   char b[64];
   std::snprintf(b, sizeof b, f, x);
@@ -187,8 +179,8 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
   std::error_code ec;
   fs::create_directories(ep_dir, ec);
   if (ec) throw IoError("cannot create output folder " + ep_dir + ": " + ec.message());
-  remove_temporaries(out);
-  remove_temporaries(ep_dir);
+  remove_stale_temporaries(out);
+  remove_stale_temporaries(ep_dir);
 
   // What this folder holds: a rerun must be the same run, or the records would mix.
   nlohmann::json run = {{"agent", req.agent},     {"label", label},
@@ -223,6 +215,12 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
   if (!req.quiet)
     progress = std::make_unique<Progress>("eval " + label + " on " + suite.name, total,
                                           total - static_cast<long>(todo.size()));
+  // Episode i is trial i % trials of task i / trials.
+  auto identify = [&](EpisodeResult& r, int i) {
+    r.index = i;
+    r.task = i / trials;
+    r.trial = i % trials;
+  };
   auto task_of = [&](int i) {
     Task t = suite.tasks[static_cast<size_t>(i / trials)];
     t.traffic_seed = trial_traffic_seed(t, i % trials);
@@ -242,9 +240,7 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
       std::string name = episode_record_name(i);
       write_file_atomic(ep_dir + "/" + name.substr(0, name.size() - 5) + ".trace.csv", trace);
     }
-    r.index = i;
-    r.task = i / trials;
-    r.trial = i % trials;
+    identify(r, i);
     write_file_atomic(ep_dir + "/" + episode_record_name(i), episode_to_json(r).dump() + "\n");
     return std::to_string(stats.steps) + " " + r.outcome;
   };
@@ -277,9 +273,7 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
       // Never a policy failure: recorded apart, and run again by the next call.
       Task t = task_of(i);
       r = EpisodeResult{};
-      r.index = i;
-      r.task = i / trials;
-      r.trial = i % trials;
+      identify(r, i);
       r.scenario = t.scenario;
       r.traffic_seed = t.traffic_seed;
       r.route_length_m = t.route_length;

@@ -35,15 +35,6 @@ bool episode_complete(const std::string& path) {
   }
 }
 
-// Leftovers of interrupted runs: temporary files never carry a final name, so they can go.
-void remove_stale_temporaries(const std::string& dir) {
-  std::error_code ec;
-  for (const auto& e : fs::directory_iterator(dir, ec)) {
-    const std::string name = e.path().filename().string();
-    if (name.size() > 4 && name.compare(name.size() - 4, 4, ".tmp") == 0) fs::remove(e.path(), ec);
-  }
-}
-
 }  // namespace
 
 std::string episode_file_name(int index) {

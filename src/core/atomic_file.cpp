@@ -50,4 +50,10 @@ std::string read_file_bytes(const std::string& path) {
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
+void remove_stale_temporaries(const std::string& dir) {
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(dir, ec))
+    if (e.path().filename().string().ends_with(".tmp")) std::filesystem::remove(e.path(), ec);
+}
+
 }  // namespace cd

@@ -14,6 +14,9 @@ void commit_temp_file(const std::string& tmp, const std::string& final_path);
 // Writes `content` atomically to `path`. Throws IoError.
 void write_file_atomic(const std::string& path, const std::string& content);
 
+// Removes the temporary files of interrupted writes in `dir` (they never carry a final name).
+void remove_stale_temporaries(const std::string& dir);
+
 // The whole content of a file. Throws IoError when it cannot be read.
 std::string read_file_bytes(const std::string& path);
 
