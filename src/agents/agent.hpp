@@ -21,6 +21,13 @@ struct Observation {
   int channels = 0, height = 0, width = 0;
   double speed = 0;  // m/s measured; learned agents zero it unless their config says otherwise
   int command = 0;   // cd::Command at the next junction
+  // Navigation goal for planners (dim, rip): the route point goal_distance() metres ahead of
+  // the ego's front, in the ego frame (x forward, y left, m, from the ego's centre). Only
+  // filled for agents whose goal_distance() > 0; route geometry, not a cause.
+  double goal_x = 0, goal_y = 0;
+  // Ego odometry: position (m, network frame) and heading (rad, 0 = east, CCW). Planners keep
+  // their own past positions from it (the ego stood still, braked, before the first act()).
+  double x = 0, y = 0, heading = 0;
 };
 
 class Agent {
@@ -30,6 +37,7 @@ class Agent {
   virtual int history() const { return 1; }         // frames in Observation::frames
   virtual int history_stride() const { return 1; }  // simulation steps between them
   virtual bool uses_frames() const { return true; }  // false: the runner renders nothing
+  virtual double goal_distance() const { return 0; }  // > 0: fill Observation::goal_x/y
   virtual void begin_episode() {}
   // The control for this step. `world` is there for the privileged agents (expert, cs);
   // learned agents must use `obs` only.

@@ -1,6 +1,7 @@
 #include <cmath>
 
 #include "agents/agent.hpp"
+#include "agents/learned_agents.hpp"
 #include "agents/policy_agent.hpp"
 #include "control/pid.hpp"
 #include "core/error.hpp"
@@ -46,7 +47,9 @@ class ConstantSpeedAgent : public Agent {
 
 const std::vector<AgentKind>& agent_kinds() {
   static const std::vector<AgentKind> kinds = {
-      {"expert", false}, {"cs", false}, {"bc-so", true}, {"bc-oh", true}};
+      {"expert", false}, {"cs", false},  {"bc-so", true},   {"bc-oh", true},
+      {"dim", true},     {"rip", true},  {"cim", true},     {"cim-mlp", true},
+      {"cim-entangled", true}};
   return kinds;
 }
 
@@ -59,6 +62,8 @@ std::unique_ptr<Agent> make_agent(const std::string& name, const std::string& ch
     if (checkpoint.empty())
       throw ConfigError("agent '" + name + "' needs --checkpoint DIR (the output of "
                         "`causaldrive train --method " + name + "`)");
+    if (name == "dim" || name == "rip") return load_dim_agent(name, checkpoint, settings);
+    if (name.rfind("cim", 0) == 0) return load_cim_agent(name, checkpoint, settings);
     return load_policy_agent(name, checkpoint, settings);
   }
   std::string known;

@@ -109,6 +109,41 @@ void visit_settings(S& st, V&& v) {
   v.number("eval", "prefill_s", st.eval.prefill_s, 0, 60);
   v.number("eval", "cs_speed", st.eval.cs_speed, 0.5, 40);
   v.integer("eval", "max_attempts", st.eval.max_attempts, 1, 100);
+
+  v.text("vae", "view", st.vae.view, {});
+  v.integer("vae", "latents", st.vae.latents, 1, 4096);
+  v.number("vae", "beta", st.vae.beta, 0, 1000);
+  v.integer("vae", "epochs", st.vae.epochs, 1, 100000);
+  v.integer("vae", "batch_size", st.vae.batch_size, 1, 65536);
+  v.number("vae", "lr", st.vae.lr, 1e-9, 1);
+  v.integer("vae", "max_frames", st.vae.max_frames, 0, kMaxI64);
+
+  v.integer("cim", "lags", st.cim.lags, 1, 100);
+  v.number("cim", "alpha", st.cim.alpha, 1e-300, 1);
+  v.text("cim", "correction", st.cim.correction, {"none", "bonferroni", "bh"});
+  v.integer("cim", "max_causes", st.cim.max_causes, 0, 4096);
+  v.integer("cim", "series_stride", st.cim.series_stride, 1, 1000);
+  v.integer("cim", "history", st.cim.history, 1, 64);
+  v.integer("cim", "history_stride", st.cim.history_stride, 1, 100);
+  v.integer("cim", "encoder_units", st.cim.encoder_units, 1, 4096);
+  v.integer("cim", "mlp_encoder_units", st.cim.mlp_encoder_units, 1, 4096);
+  v.integer("cim", "hidden", st.cim.hidden, 1, 4096);
+  v.integer("cim", "epochs", st.cim.epochs, 1, 100000);
+  v.integer("cim", "batch_size", st.cim.batch_size, 1, 65536);
+  v.number("cim", "lr", st.cim.lr, 1e-9, 1);
+
+  v.integer("dim", "horizon", st.dim.horizon, 1, 100);
+  v.integer("dim", "waypoint_step", st.dim.waypoint_step, 1, 100);
+  v.integer("dim", "past", st.dim.past, 1, 100);
+  v.integer("dim", "features", st.dim.features, 8, 4096);
+  v.integer("dim", "hidden", st.dim.hidden, 8, 4096);
+  v.number("dim", "min_std", st.dim.min_std, 1e-4, 10);
+  v.integer("dim", "plan_iterations", st.dim.plan_iterations, 0, 10000);
+  v.number("dim", "plan_lr", st.dim.plan_lr, 0, 100);
+  v.number("dim", "goal_distance", st.dim.goal_distance, 0, 1000);
+  v.number("dim", "goal_weight", st.dim.goal_weight, 0, 1000);
+  v.integer("dim", "ensemble", st.dim.ensemble, 1, 64);
+  v.text("dim", "aggregation", st.dim.aggregation, {"worst", "mean"});
 }
 
 // Reads each field from its table; tables are opened once, and checked for unknown keys

@@ -119,6 +119,50 @@ struct EvalSettings {
   int max_attempts = 3;     // an episode whose worker or SUMO crashed is run again this often
 };
 
+// Perception model of the cim family (seed 000 section 5.4.2): a beta-VAE on one grey BEV view.
+struct VaeSettings {
+  std::string view = "vehicles";  // BEV channel(s) merged into the grey input, "a+b" for several
+  int latents = 128;
+  double beta = 6.0;     // cim and cim-mlp; cim-entangled trains with beta = 1
+  int epochs = 4;
+  int batch_size = 64;
+  double lr = 3e-4;
+  long max_frames = 30000;  // seeded subset of the data's frames it trains on, 0 = all
+};
+
+// Cause selection and the causal speed predictor (seed 000 sections 4.2, 5.4.3).
+struct CimSettings {
+  int lags = 3;                         // Granger lags
+  double alpha = 0.01;                  // level of the Granger tests
+  std::string correction = "bonferroni";  // none | bonferroni | bh
+  int max_causes = 4;                   // at most this many selected (smallest p, then F); 0 = all
+  int series_stride = 5;                // simulation steps between the samples of the series
+  int history = 3;                      // last values of each variable the predictor sees
+  int history_stride = 1;               // simulation steps between them
+  int encoder_units = 16;               // per-variable linear encoder of cim, cim-entangled
+  int mlp_encoder_units = 8;            // per-variable encoder of cim-mlp (all latents)
+  int hidden = 64;                      // width of the predictor MLP
+  int epochs = 10;                      // speed predictor epochs
+  int batch_size = 256;
+  double lr = 1e-3;
+};
+
+// The imitative trajectory model (dim) and its ensemble (rip), seed 000 section 5.3.
+struct DimSettings {
+  int horizon = 4;          // future waypoints predicted
+  int waypoint_step = 5;    // simulation steps between waypoints (0.5 s at dt 0.1)
+  int past = 4;             // past ego positions it is conditioned on
+  int features = 128;       // width of the BEV encoder output
+  int hidden = 128;
+  double min_std = 0.05;    // m, lower bound of each step's standard deviation
+  int plan_iterations = 30; // gradient-ascent steps of the planner
+  double plan_lr = 0.2;     // m per step (Adam)
+  double goal_distance = 20;  // m along the route: the goal the plan is pulled toward
+  double goal_weight = 0.02;  // weight of -|last waypoint - goal|^2 (per m^2) in the objective
+  int ensemble = 3;           // rip: DIMs trained on bootstrap resamples of the episodes
+  std::string aggregation = "worst";  // rip: worst (min over members) | mean
+};
+
 struct Settings {
   std::string source = "(built-in defaults)";  // where they came from
   WorldSettings world;
@@ -130,6 +174,9 @@ struct Settings {
   ModelSettings model;
   TrainSettings train;
   EvalSettings eval;
+  VaeSettings vae;
+  CimSettings cim;
+  DimSettings dim;
 };
 
 Settings load_settings(const std::string& path);  // throws ConfigError

@@ -107,6 +107,7 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
   obs.height = world.renderer().config().height;
   obs.width = world.renderer().config().width;
   obs.frames.resize(frames ? k : 0);
+  const double goal_distance = agent.goal_distance();
   StopGoTracker tracker(dt);
   std::vector<char> stopped, free_path;
   long n = 0;
@@ -120,6 +121,16 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
     }
     obs.speed = world.ego().speed;
     obs.command = world.command();
+    const Pose2& pose = world.ego().pose;
+    obs.x = pose.pos.x;
+    obs.y = pose.pos.y;
+    obs.heading = pose.heading;
+    if (goal_distance > 0) {
+      Vec2 g = world.path_point(goal_distance) - pose.pos;
+      double c = std::cos(pose.heading), s = std::sin(pose.heading);
+      obs.goal_x = c * g.x + s * g.y;
+      obs.goal_y = -s * g.x + c * g.y;
+    }
     Control c = agent.act(obs, world);
     if (trace_csv) {
       const GroundTruth& gt = world.truth();

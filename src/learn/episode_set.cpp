@@ -75,6 +75,8 @@ PackedEpisode pack(const std::string& path, const EpisodeData& d) {
   p.speed = d.speed;
   p.action = d.action;
   p.command = d.command;
+  p.pose = d.pose;
+  p.causes = d.causes;
   auto it = d.causes.find("path_free");
   if (it != d.causes.end()) p.path_free = it->second;
   return p;

@@ -2,6 +2,7 @@
 // The episodes of a data folder (the output of `causaldrive collect`) in memory, frames kept
 // packed: one byte per pixel, bit c = channel c (core/bitplanes.hpp), 8x smaller than planes.
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -15,6 +16,9 @@ struct PackedEpisode {
   std::vector<float> action;     // T*2: throttle, brake (the expert's label)
   std::vector<int32_t> command;  // T, cd::Command
   std::vector<float> path_free;  // T, ground truth 0/1; empty when the file has none
+  std::vector<float> pose;       // T*3: x, y (m, network frame), heading (rad, 0 = east, CCW)
+  // Every ground-truth series of the file's causes/ group (lead_distance, tl_state, ...).
+  std::map<std::string, std::vector<float>> causes;
 };
 
 struct EpisodeSet {

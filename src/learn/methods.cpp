@@ -21,14 +21,14 @@ bool contains(const std::vector<std::string>& v, const std::string& x) {
 }  // namespace
 
 const std::vector<std::string>& available_train_methods() {
-  static const std::vector<std::string> names = {"bc-so", "bc-oh"};
+  static const std::vector<std::string> names = {"bc-so", "bc-oh", "dim", "rip", "cim",
+                                                  "cim-mlp", "cim-entangled"};
   return names;
 }
 
 const std::vector<std::string>& planned_train_methods() {
   static const std::vector<std::string> names = {
-      "dim", "rip", "cim", "cim-mlp", "cim-entangled", "residual", "fca", "keyframe", "hd",
-      "dagger"};
+      "residual", "fca", "keyframe", "hd", "dagger"};
   return names;
 }
 
@@ -52,6 +52,8 @@ Settings effective_settings(const std::string& method, Settings s) {
     s.model.history = 1;
     s.model.history_stride = 1;
   }
+  if (method == "cim-entangled") s.vae.beta = 1.0;  // the plain VAE of the ablation
+  if (method == "dim") s.dim.ensemble = 1;
   return s;
 }
 

@@ -16,10 +16,12 @@
 namespace cd {
 
 struct TrainRequest {
-  std::string method;    // bc-so | bc-oh
+  std::string method;    // a trainable method of learn/methods.hpp
   std::string data_dir;  // a `causaldrive collect` folder
   std::string out_dir;   // checkpoint folder (created; resumed when it holds one)
   bool quiet = false;    // no progress output
+  std::string init;      // cim family: fine-tune the speed predictor of this finished run
+  std::string vae_from;  // cim family: reuse the VAE of this run instead of training one
 };
 
 struct TrainSummary {

@@ -732,6 +732,27 @@ void World::compute_path() {
     }
 }
 
+Vec2 World::path_point(double s) const {
+  Vec2 last = ego_.pose.pos;
+  for (const PathLane& pl : path_) {
+    const Polyline& shape = pl.lane->shape;
+    double arc = 0;
+    for (size_t i = 1; i < shape.size(); ++i) {
+      Vec2 a = shape[i - 1], d = shape[i] - a;
+      double len = d.norm();
+      if (len < 1e-9) continue;
+      double lo = std::max(arc, pl.from_pos), hi = arc + len;
+      if (hi > lo) {
+        double s_lo = pl.s_begin + lo - pl.from_pos, s_hi = pl.s_begin + hi - pl.from_pos;
+        if (s <= s_hi) return a + d * ((std::max(s, s_lo) - pl.s_begin + pl.from_pos - arc) / len);
+        last = shape[i];
+      }
+      arc = hi;
+    }
+  }
+  return last;
+}
+
 bool World::on_path(Vec2 p, double half_width, double* s_out) const {
   if (p.x < path_min_.x - half_width || p.x > path_max_.x + half_width ||
       p.y < path_min_.y - half_width || p.y > path_max_.y + half_width)

@@ -142,6 +142,9 @@ class World {
   double time() const { return ego_.time; }
   // Path lanes of the current route from the ego on (ids), for the route layer and tests.
   const std::vector<std::string>& route_lanes() const { return route_lanes_; }
+  // The point of the ego's path `s` metres ahead of its front bumper (network frame), or its
+  // last point when the path known this step (80 m, or up to the goal) is shorter.
+  Vec2 path_point(double s) const;
 
   // Test hooks: place a stopped vehicle on a lane position (scripted scenarios), and read
   // the per-step collision and red-light state.

@@ -90,11 +90,12 @@ TEST(Checkpoint, PendingFilesOfTheCommittedEpochRollForward) {
 TEST(Methods, NamesAndErrors) {
   for (const auto& m : available_train_methods()) EXPECT_NO_THROW(check_train_method(m));
   try {
-    check_train_method("rip");
+    check_train_method("fca");
     FAIL();
   } catch (const ConfigError& e) {
     EXPECT_EQ(std::string(e.what()),
-              "method 'rip' is not available in this version (available: bc-so, bc-oh)");
+              "method 'fca' is not available in this version (available: bc-so, bc-oh, dim, "
+              "rip, cim, cim-mlp, cim-entangled)");
   }
   for (const auto& m : planned_train_methods()) EXPECT_THROW(check_train_method(m), ConfigError);
   EXPECT_THROW(check_train_method("expert"), ConfigError);

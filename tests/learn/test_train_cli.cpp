@@ -165,8 +165,9 @@ TEST(TrainCli, ErrorsAreOneLine) {
                         "not found");
   expect_one_line_error(test::run_cli(train_args(f.config, "bc-xx", f.data, f.dir / "o2")),
                         "unknown method 'bc-xx'");
-  expect_one_line_error(test::run_cli(train_args(f.config, "cim", f.data, f.dir / "o3")),
-                        "method 'cim' is not available in this version (available: bc-so, bc-oh)");
+  expect_one_line_error(test::run_cli(train_args(f.config, "dagger", f.data, f.dir / "o3")),
+                        "method 'dagger' is not available in this version (available: bc-so, "
+                        "bc-oh, dim, rip, cim, cim-mlp, cim-entangled)");
   test::write_fake_folder(f.dir / "empty", 0);
   expect_one_line_error(test::run_cli(train_args(f.config, "bc-oh", f.dir / "empty", f.dir / "o4")),
                         "no episode_");

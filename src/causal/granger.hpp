@@ -1,0 +1,31 @@
+#pragma once
+// Granger causality (SPEC section 4): the bivariate sum-of-squared-residuals F test with a
+// constant, rows never lagged across an episode boundary, multiple-testing control.
+#include <string>
+#include <vector>
+
+namespace cd {
+
+struct GrangerTest {
+  double f_stat = 0;
+  double p_value = 1;
+  int df_num = 0;  // L
+  int df_den = 0;  // n - 2L - 1 (bivariate); fewer with conditioning variables
+  long rows = 0;   // n: rows of the regression after lagging
+};
+
+// One series per episode for the target y and the candidate x (equal lengths per episode).
+// Restricted model: y_t on a constant and y_{t-1..t-L}; unrestricted: plus x_{t-1..t-L}.
+// With `conditioning` (each a set of per-episode series), both models also hold L lags of
+// every conditioning variable (the conditional, multivariate variant).
+// Throws DataError when there are too few rows for the test.
+GrangerTest granger_f_test(const std::vector<std::vector<double>>& y,
+                           const std::vector<std::vector<double>>& x, int lags,
+                           const std::vector<std::vector<std::vector<double>>>& conditioning = {});
+
+// Adjusted p-values: "none" (as given), "bonferroni" (p * m, at most 1), "bh"
+// (Benjamini-Hochberg step-up, monotone, at most 1). A variable is selected when its adjusted
+// p-value is <= alpha. Throws ConfigError for another method name.
+std::vector<double> adjust_p_values(const std::vector<double>& p, const std::string& method);
+
+}  // namespace cd
