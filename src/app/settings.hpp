@@ -61,7 +61,7 @@ struct NoiseSettings {
 };
 
 struct CollectSettings {
-  int episodes = 4;
+  int episodes = 24;
   uint64_t seed = 0;
   int workers = 2;
   std::string out = "runs/quickstart/data";

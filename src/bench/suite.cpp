@@ -57,6 +57,9 @@ const std::vector<SuiteRecipe>& builtin_suite_recipes() {
     q.max_route_m = 300;
     q.scenarios = {"route", "red_light", "route", "leader"};
     v.push_back(q);
+    // The adaptation town (seed 000's Table 3): never trained on except few-shot.
+    seed = 1100;
+    for (const char* traffic : {"regular", "stopgo"}) v.push_back(recipe("town-c", traffic, seed++));
     return v;
   }();
   return recipes;

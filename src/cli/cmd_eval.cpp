@@ -36,7 +36,7 @@ void add_eval(CLI::App& app) {
   auto a = std::make_shared<EvalArgs>();
   CLI::App* sub = app.add_subcommand("eval", "evaluate an agent closed-loop on a benchmark suite");
   sub->add_option("--config,-c", a->config, "TOML config (default: built-in quickstart)");
-  sub->add_option("--agent", a->agent, "expert | cs | bc-so | bc-oh");
+  sub->add_option("--agent", a->agent, "expert | cs | bc-so | bc-oh | dim | rip | cim | cim-mlp | cim-entangled");
   sub->add_option("--checkpoint", a->checkpoint, "training output folder of a learned agent");
   sub->add_option("--suite", a->suite, "built-in suite name or suite file (eval.suite)");
   sub->add_option("--workers,-j", a->workers, "worker processes (eval.workers)")

@@ -1,62 +1,90 @@
+#include <chrono>
 #include <cstdio>
 #include <map>
 
-#include "cli/commands.hpp"
-#include "cli/common.hpp"
 #include "bench/report.hpp"
 #include "bench/runner.hpp"
+#include "cli/commands.hpp"
+#include "cli/common.hpp"
 #include "collect/collect.hpp"
+#include "core/progress.hpp"
+#include "learn/cim.hpp"
+#include "learn/trainer.hpp"
 #include "world/town.hpp"
 
 namespace cd::cli {
+
+namespace {
+
+void heading(const std::string& text) {
+  std::printf("\n== %s\n", text.c_str());
+  std::fflush(stdout);  // keep it above the progress lines on stderr
+}
+
+}  // namespace
 
 void add_quickstart(CLI::App& app) {
   auto config = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   CLI::App* sub = app.add_subcommand(
-      "quickstart", "the main job: generate the towns, record expert demonstrations, evaluate the expert and the constant-speed baseline");
+      "quickstart",
+      "the main job: generate the towns, record expert demonstrations, train bc-oh and cim "
+      "(beta-VAE, Granger cause selection, speed predictor), evaluate the expert, cs, bc-oh and "
+      "cim in closed loop and print the comparison table");
   sub->add_option("--config,-c", *config, "TOML config (default: built-in quickstart)");
   sub->add_option("--out,-o", *out, "data folder (collect.out)");
   sub->callback([config, out] {
+    const auto t0 = std::chrono::steady_clock::now();
     Settings s = settings_from(*config);
     if (!out->empty()) s.collect.out = *out;
     std::printf("causaldrive quickstart\n");
     for (const auto& name : town_names())
       std::printf("  town %-7s %s\n", name.c_str(), ensure_town_net(name).c_str());
-    std::printf("recording %d expert episodes in %s, %s traffic, %d workers -> %s\n",
-                s.collect.episodes, s.world.town.c_str(), s.world.traffic.c_str(),
-                s.collect.workers, s.collect.out.c_str());
-    std::fflush(stdout);  // keep this header above the progress lines on stderr
+
+    heading("1/4 recording " + std::to_string(s.collect.episodes) + " expert episodes in " +
+            s.world.town + ", " + s.world.traffic + " traffic, " +
+            std::to_string(s.collect.workers) + " workers -> " + s.collect.out);
     CollectReport r = collect(s);
     std::map<std::string, int> n;
     for (const auto& e : r.episodes) ++n[e.outcome];
-    int total = static_cast<int>(r.episodes.size());
-    std::printf("\n| agent  | episodes | success | collision | timeout |\n");
-    std::printf("|--------|----------|---------|-----------|---------|\n");
-    std::printf("| expert | %8d | %6.1f%% | %8.1f%% | %6.1f%% |\n", total,
-                100.0 * n["success"] / total, 100.0 * n["collision"] / total,
-                100.0 * n["timeout"] / total);
-    std::printf("\ndata: %s (one HDF5 file per episode, see README 'Data format')\n",
-                s.collect.out.c_str());
+    std::printf("recorded %zu episodes: %d success, %d collision, %d timeout (one HDF5 file per "
+                "episode, see README 'Data format')\n",
+                r.episodes.size(), n["success"], n["collision"], n["timeout"]);
 
-    // The closed-loop benchmark on the quickstart suite: the expert and the constant-speed
-    // baseline (the collision upper bound).
+    // Both learners see the same recorded episodes; their folders resume on a rerun.
+    const std::string train_root = s.train.out;
+    TrainRequest bc{"bc-oh", s.collect.out, train_root + "/bc-oh", false};
+    heading("2/4 training bc-oh (behaviour cloning from " + std::to_string(s.model.history) +
+            " stacked frames) -> " + bc.out_dir);
+    print_train_summary(train_policy(s, bc));
+    TrainRequest cim{"cim", s.collect.out, train_root + "/cim", false};
+    heading("3/4 training cim: beta-VAE, Granger cause selection, causal speed predictor -> " +
+            cim.out_dir);
+    print_train_summary(train_cim(s, cim));
+
+    heading("4/4 closed-loop evaluation on suite " + s.eval.suite);
     const std::string eval_root = s.eval.out;
     std::vector<std::string> runs;
-    for (const char* agent : {"expert", "cs"}) {
+    const std::vector<std::pair<std::string, std::string>> agents = {
+        {"expert", ""}, {"cs", ""}, {"bc-oh", bc.out_dir}, {"cim", cim.out_dir}};
+    for (const auto& [agent, checkpoint] : agents) {
       Settings e = s;
       e.eval.out = eval_root + "/" + agent;
-      std::printf("\nevaluating %s on suite %s -> %s\n", agent, e.eval.suite.c_str(),
-                  e.eval.out.c_str());
+      std::printf("evaluating %s -> %s\n", agent.c_str(), e.eval.out.c_str());
       std::fflush(stdout);
-      run_eval(e, EvalRequest{agent, "", "", false});
+      run_eval(e, EvalRequest{agent, checkpoint, "", false});
       runs.push_back(e.eval.out);
     }
     std::vector<RunResult> results;
     for (const auto& f : find_result_files(runs)) results.push_back(load_result(f));
-    std::printf("\n%s", render_markdown(build_report(results), parse_metric_sets("outcomes,stopgo")).c_str());
-    std::printf("\nresults: %s/<agent>/results.json; `causaldrive report %s` prints the tables again\n",
-                eval_root.c_str(), eval_root.c_str());
+    std::printf("\n%s", render_markdown(build_report(results),
+                                        parse_metric_sets("outcomes,stopgo")).c_str());
+    const double secs =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::printf("\nresults: %s/<agent>/results.json; `causaldrive report %s` prints the tables "
+                "again. Selected causes: %s/causes.json. Total time %s.\n",
+                eval_root.c_str(), eval_root.c_str(), cim.out_dir.c_str(),
+                format_duration(secs).c_str());
   });
 }
 

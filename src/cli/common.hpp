@@ -2,6 +2,7 @@
 #include <string>
 
 #include "app/settings.hpp"
+#include "learn/trainer.hpp"
 
 namespace cd::cli {
 
@@ -9,5 +10,8 @@ namespace cd::cli {
 inline Settings settings_from(const std::string& config_path) {
   return config_path.empty() ? Settings{} : load_settings(config_path);
 }
+
+// The lines `causaldrive train` prints at the end of a run.
+void print_train_summary(const TrainSummary& s);
 
 }  // namespace cd::cli

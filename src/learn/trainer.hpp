@@ -35,6 +35,7 @@ struct TrainSummary {
   int train_episodes = 0, val_episodes = 0;
   double seconds = 0;        // of this run
   double samples_per_s = 0;  // training throughput of this run (0 when nothing was trained)
+  std::string weights_file;  // what agents load, inside out_dir (empty: best.pt)
 };
 
 // Trains settings.train.epochs epochs in total (resuming what the folder holds). Throws

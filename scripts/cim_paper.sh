@@ -1,0 +1,119 @@
+#!/usr/bin/env bash
+# Reproduces seed 000's Tables 1-3 on causaldrive's towns with configs/cim_paper.toml.
+#
+#   scripts/cim_paper.sh train    # expert data (town-a; town-c for few-shot) + all models, all seeds
+#   scripts/cim_paper.sh table1   # CS, DIM, RIP, CIM     on town-a / town-b regular, dense, stopgo
+#   scripts/cim_paper.sh table2   # CIM, CIM-MLP, CIM-entangled on the same suites
+#   scripts/cim_paper.sh table3   # CIM, CIM-MLP fine-tuned on 100 town-c samples, on town-c
+#   scripts/cim_paper.sh all      # the four above in order
+#
+# Every step resumes: collect, train and eval skip what their output folders already hold, so
+# an interrupted run is continued by running the same command again. Environment knobs:
+#   CD      the causaldrive binary        (default: build/causaldrive)
+#   OUT     the experiment folder          (default: runs/cim_paper)
+#   SEEDS   training seeds                 (default: "0 1 2")
+#   TASKS   tasks per suite; 25 uses the built-in suites, other values generate suites
+#           of that size into $OUT/suites from fixed seeds (default: 100, as in the paper)
+#   TRIALS  trials per task                (default: 3)
+#   WORKERS evaluation workers             (default: 2)
+set -euo pipefail
+
+cd "$(dirname "$0")/.."
+CD=${CD:-build/causaldrive}
+CONFIG=configs/cim_paper.toml
+OUT=${OUT:-runs/cim_paper}
+SEEDS=${SEEDS:-"0 1 2"}
+TASKS=${TASKS:-100}
+TRIALS=${TRIALS:-3}
+WORKERS=${WORKERS:-2}
+DATA_A=$OUT/data/town-a
+DATA_C=$OUT/data/town-c
+TEST_SUITES="town-a-regular town-a-dense town-a-stopgo town-b-regular town-b-dense town-b-stopgo"
+
+[[ -x $CD ]] || { echo "error: $CD not found; run 'make build' first (or set CD)" >&2; exit 1; }
+
+# The suite file (or built-in name) of a test suite at $TASKS tasks.
+suite_of() {
+  local name=$1
+  if [[ $TASKS == 25 ]]; then echo "$name"; return; fi
+  local file=$OUT/suites/$name-$TASKS.json
+  if [[ ! -f $file ]]; then
+    mkdir -p "$OUT/suites"
+    local town=${name%-*} kind=${name##*-} seed
+    seed=$(( 5000 + $(cksum <<<"$name" | cut -d' ' -f1) % 1000 ))
+    if [[ $kind == stopgo ]]; then
+      "$CD" suite --name "$name-$TASKS" --town "$town" --traffic regular --tasks "$TASKS" \
+        --trials "$TRIALS" --seed "$seed" --scenarios red_light,leader --min-route 120 \
+        --max-route 300 --out "$file" >&2
+    else
+      "$CD" suite --name "$name-$TASKS" --town "$town" --traffic "$kind" --tasks "$TASKS" \
+        --trials "$TRIALS" --seed "$seed" --out "$file" >&2
+    fi
+  fi
+  echo "$file"
+}
+
+train_all() {
+  "$CD" collect --config "$CONFIG" --out "$DATA_A"
+  "$CD" collect --config "$CONFIG" --town town-c --episodes 20 --seed 300 --out "$DATA_C"
+  for s in $SEEDS; do
+    local T=$OUT/train/seed$s
+    "$CD" train --config "$CONFIG" --method cim --data "$DATA_A" --seed "$s" --out "$T/cim"
+    "$CD" train --config "$CONFIG" --method cim-mlp --data "$DATA_A" --seed "$s" \
+      --vae "$T/cim" --out "$T/cim-mlp"
+    "$CD" train --config "$CONFIG" --method cim-entangled --data "$DATA_A" --seed "$s" \
+      --out "$T/cim-entangled"
+    "$CD" train --config "$CONFIG" --method dim --data "$DATA_A" --seed "$s" --out "$T/dim"
+    "$CD" train --config "$CONFIG" --method rip --data "$DATA_A" --seed "$s" --out "$T/rip"
+    # Table 3: the town-a speed predictors fine-tuned on 100 town-c samples.
+    for m in cim cim-mlp; do
+      "$CD" train --config "$CONFIG" --method "$m" --init "$T/$m" --data "$DATA_C" \
+        --max-samples 100 --seed "$s" --out "$T/$m-fewshot"
+    done
+  done
+}
+
+# eval_agents TABLE SUITES AGENTS...: every agent x seed x suite, then the tables.
+eval_agents() {
+  local table=$1 suites=$2; shift 2
+  local dirs=()
+  for agent in "$@"; do
+    for name in $suites; do
+      local suite; suite=$(suite_of "$name")
+      if [[ $agent == cs ]]; then  # nothing trained: one run
+        local dir=$OUT/eval/cs/$name
+        "$CD" eval --config "$CONFIG" --agent cs --suite "$suite" --trials "$TRIALS" \
+          --workers "$WORKERS" --quiet --out "$dir"
+        dirs+=("$dir")
+        continue
+      fi
+      for s in $SEEDS; do
+        local run=$agent kind=$agent
+        if [[ $agent == *-fewshot ]]; then kind=${agent%-fewshot}; fi
+        local dir=$OUT/eval/$agent/seed$s/$name
+        "$CD" eval --config "$CONFIG" --agent "$kind" --checkpoint "$OUT/train/seed$s/$run" \
+          --label "$agent" --suite "$suite" --trials "$TRIALS" --workers "$WORKERS" --quiet \
+          --out "$dir"
+        dirs+=("$dir")
+      done
+    done
+  done
+  "$CD" report "${dirs[@]}" --metrics all --markdown "$OUT/$table.md" --csv "$OUT/$table.csv"
+}
+
+case ${1:-} in
+  train) train_all ;;
+  table1) eval_agents table1 "$TEST_SUITES" cs dim rip cim ;;
+  table2) eval_agents table2 "$TEST_SUITES" cim cim-mlp cim-entangled ;;
+  table3) eval_agents table3 town-c-regular cim cim-mlp cim-fewshot cim-mlp-fewshot ;;
+  all)
+    train_all
+    eval_agents table1 "$TEST_SUITES" cs dim rip cim
+    eval_agents table2 "$TEST_SUITES" cim cim-mlp cim-entangled
+    eval_agents table3 town-c-regular cim cim-mlp cim-fewshot cim-mlp-fewshot
+    ;;
+  *)
+    sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'
+    exit 2
+    ;;
+esac
