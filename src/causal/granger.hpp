@@ -28,4 +28,26 @@ GrangerTest granger_f_test(const std::vector<std::vector<double>>& y,
 // p-value is <= alpha. Throws ConfigError for another method name.
 std::vector<double> adjust_p_values(const std::vector<double>& p, const std::string& method);
 
+// A named variable, one series per episode.
+struct NamedSeries {
+  std::string name;
+  std::vector<std::vector<double>> episodes;
+};
+
+struct GrangerResult {
+  std::string variable;
+  GrangerTest test;
+  double p_adjusted = 1;  // after the correction
+  bool selected = false;  // p_adjusted <= alpha
+};
+
+// Tests every candidate against the target y (in the candidates' order), adjusts the p-values
+// with `correction` (see adjust_p_values) and marks those selected at `alpha`. With
+// `conditional`, each candidate is tested conditioning on all the other candidates. Throws
+// ConfigError for alpha outside (0, 1], lags < 1 or an unknown correction.
+std::vector<GrangerResult> granger_select(const std::vector<std::vector<double>>& y,
+                                          const std::vector<NamedSeries>& candidates, int lags,
+                                          double alpha, const std::string& correction,
+                                          bool conditional = false);
+
 }  // namespace cd

@@ -14,6 +14,6 @@ void add_probe(CLI::App& app);
 void add_report(CLI::App& app);
 void add_bench(CLI::App& app);
 void add_quickstart(CLI::App& app);
-void add_planned(CLI::App& app);  // granger: not in this version yet
+void add_granger(CLI::App& app);
 
 }  // namespace cd::cli

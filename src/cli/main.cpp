@@ -20,9 +20,9 @@ int main(int argc, char** argv) {
   cd::cli::add_eval(app);
   cd::cli::add_suite(app);
   cd::cli::add_probe(app);
+  cd::cli::add_granger(app);
   cd::cli::add_report(app);
   cd::cli::add_bench(app);
-  cd::cli::add_planned(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
