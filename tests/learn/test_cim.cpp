@@ -1,0 +1,227 @@
+// The torch-free parts of the cim pipeline: Granger cause selection on synthetic latents
+// (a lagged driver is found, noise is not, corrections and the cap act), the grey view, the
+// ground-truth helpers, the PNG writer.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "causal/granger.hpp"
+#include "core/error.hpp"
+#include "core/png.hpp"
+#include "core/rng.hpp"
+#include "learn/cim_data.hpp"
+#include "../support/test_support.hpp"
+
+namespace cd {
+namespace {
+
+using Series = std::vector<std::vector<double>>;
+
+double gauss(Rng& r) {  // Box-Muller, fixed by this code
+  double u = std::max(r.uniform(), 1e-300), v = r.uniform();
+  return std::sqrt(-2 * std::log(u)) * std::cos(2 * M_PI * v);
+}
+
+// An AR(1) series per episode.
+Series ar_series(Rng& r, int episodes, int len) {
+  Series s(episodes);
+  for (auto& ep : s) {
+    double x = 0;
+    for (int t = 0; t < len; ++t) ep.push_back(x = 0.7 * x + gauss(r));
+  }
+  return s;
+}
+
+// speed_t = sum_i coupling[i] * driver_i(t-2) + noise.
+Series speed_from(const std::vector<Series>& drivers, const std::vector<double>& coupling, Rng& r) {
+  Series y(drivers[0].size());
+  for (size_t e = 0; e < y.size(); ++e)
+    for (size_t t = 0; t < drivers[0][e].size(); ++t) {
+      double v = gauss(r);
+      for (size_t i = 0; i < drivers.size(); ++i)
+        if (t >= 2) v += coupling[i] * drivers[i][e][t - 2];
+      y[e].push_back(v);
+    }
+  return y;
+}
+
+CimSettings settings(const std::string& correction, double alpha = 0.01, int max_causes = 0) {
+  CimSettings c;
+  c.lags = 3;
+  c.alpha = alpha;
+  c.correction = correction;
+  c.max_causes = max_causes;
+  return c;
+}
+
+TEST(CimSelection, LaggedDriverIsSelectedNoiseIsNot) {
+  Rng r(7);
+  std::vector<Series> latents;
+  for (int i = 0; i < 8; ++i) latents.push_back(ar_series(r, 3, 200));
+  Series y = speed_from({latents[5]}, {1.0}, r);
+  CauseSelection sel = select_causes(y, latents, settings("bonferroni"), false);
+  EXPECT_EQ(sel.selected, std::vector<int>{5});
+  EXPECT_EQ(sel.ranked, std::vector<int>{5});
+  EXPECT_FALSE(sel.fallback);
+  EXPECT_EQ(sel.rows, 3 * (200 - 3));
+  ASSERT_EQ(sel.tests.size(), 8u);
+  EXPECT_TRUE(sel.tests[5].selected);
+  EXPECT_LT(sel.tests[5].test.p_value, 1e-10);
+  EXPECT_DOUBLE_EQ(sel.threshold_p, 0.01 / 8);
+  for (int i = 0; i < 8; ++i) {
+    EXPECT_NEAR(sel.tests[i].p_adjusted, std::min(1.0, 8 * sel.tests[i].test.p_value), 1e-12);
+    // The tests are the library's bivariate F tests.
+    GrangerTest g = granger_f_test(y, latents[i], 3);
+    EXPECT_EQ(sel.tests[i].test.p_value, g.p_value);
+    EXPECT_EQ(sel.tests[i].test.df_den, 3 * 197 - 7);
+  }
+  // cim-mlp: every latent is an input, the tests and picks are still recorded.
+  CauseSelection all = select_causes(y, latents, settings("bonferroni"), true);
+  EXPECT_EQ(all.selected.size(), 8u);
+  EXPECT_EQ(all.ranked, std::vector<int>{5});
+  EXPECT_TRUE(all.tests[0].selected);
+  EXPECT_FALSE(all.tests[0].significant);
+}
+
+TEST(CimSelection, BonferroniDropsABorderlineCauseThatNoneKeeps) {
+  // A weak driver whose raw p lies in (alpha/m, alpha]: found without correction only. The
+  // data are fixed by the seed; the coupling is searched once for such a p.
+  const int m = 10;
+  for (double c = 0.02; c < 0.5; c += 0.005) {
+    Rng r(11);
+    std::vector<Series> latents;
+    for (int i = 0; i < m; ++i) latents.push_back(ar_series(r, 2, 300));
+    Series y = speed_from({latents[2]}, {c}, r);
+    const double p = granger_f_test(y, latents[2], 3).p_value;
+    if (!(p > 0.01 / m && p <= 0.01)) continue;
+    // Keep noise latents out of the picture when they pass by chance at 0.01.
+    bool clean = true;
+    for (int i = 0; i < m; ++i)
+      if (i != 2 && granger_f_test(y, latents[i], 3).p_value <= 0.01) clean = false;
+    if (!clean) continue;
+    CauseSelection none = select_causes(y, latents, settings("none"), false);
+    CauseSelection bonf = select_causes(y, latents, settings("bonferroni"), false);
+    EXPECT_EQ(none.selected, std::vector<int>{2});
+    EXPECT_FALSE(none.fallback);
+    EXPECT_TRUE(bonf.fallback);  // nothing significant: the smallest-p latent, flagged
+    EXPECT_EQ(bonf.significant, 0);
+    EXPECT_EQ(bonf.selected, std::vector<int>{2});
+    return;
+  }
+  FAIL() << "no coupling gave a borderline p-value";
+}
+
+TEST(CimSelection, MaxCausesKeepsTheStrongestAndBhIsBetweenTheOthers) {
+  Rng r(5);
+  std::vector<Series> latents;
+  for (int i = 0; i < 6; ++i) latents.push_back(ar_series(r, 2, 400));
+  // Drivers 1, 3, 4 with falling strength.
+  Series y = speed_from({latents[1], latents[3], latents[4]}, {2.0, 1.0, 0.5}, r);
+  CauseSelection uncapped = select_causes(y, latents, settings("bonferroni", 0.01, 0), false);
+  EXPECT_EQ(uncapped.selected, (std::vector<int>{1, 3, 4}));
+  EXPECT_FALSE(uncapped.capped);
+  CauseSelection capped = select_causes(y, latents, settings("bonferroni", 0.01, 2), false);
+  EXPECT_EQ(capped.selected, (std::vector<int>{1, 3}));
+  EXPECT_TRUE(capped.capped);
+  EXPECT_EQ(capped.significant, 3);
+  EXPECT_TRUE(capped.tests[4].significant);
+  EXPECT_FALSE(capped.tests[4].selected);
+  CauseSelection one = select_causes(y, latents, settings("bonferroni", 0.01, 1), false);
+  EXPECT_EQ(one.selected, std::vector<int>{1});
+  // BH's raw-p threshold lies between Bonferroni's and no correction's.
+  CauseSelection bh = select_causes(y, latents, settings("bh"), false);
+  EXPECT_EQ(bh.selected, (std::vector<int>{1, 3, 4}));
+  EXPECT_GE(bh.threshold_p, 0.01 / 6);
+  EXPECT_LE(bh.threshold_p, 0.01);
+  EXPECT_DOUBLE_EQ(bh.threshold_p, 3 * 0.01 / 6);
+}
+
+TEST(CimSelection, NothingSignificantFallsBackToTheSmallestP) {
+  Rng r(9);
+  std::vector<Series> latents;
+  for (int i = 0; i < 5; ++i) latents.push_back(ar_series(r, 2, 100));
+  Series y = ar_series(r, 2, 100);
+  CauseSelection sel = select_causes(y, latents, settings("bonferroni", 1e-12), false);
+  ASSERT_TRUE(sel.fallback);
+  ASSERT_EQ(sel.selected.size(), 1u);
+  for (const auto& t : sel.tests) EXPECT_GE(t.test.p_value, sel.tests[sel.selected[0]].test.p_value);
+  EXPECT_THROW(select_causes(y, latents, settings("holm"), false), ConfigError);
+}
+
+TEST(CimView, OrsChannelsAndAveragesAreas) {
+  const std::vector<std::string> names = {"drivable", "markings", "route", "vehicles", "pedestrians"};
+  CimView v = resolve_view("vehicles+pedestrians", names, 128, 128);
+  EXPECT_EQ(v.channels, (std::vector<int>{3, 4}));
+  EXPECT_EQ(v.mask, (1 << 3) | (1 << 4));
+  std::vector<uint8_t> packed(128 * 128, 0);
+  packed[0] = 1 << 3;                       // cell (0,0): 1 of 4 pixels
+  packed[2] = 1 << 4, packed[3] = 1 << 4;   // cell (0,1): 2 of 4 (another channel)
+  packed[128 + 2] = 1 << 3, packed[128 + 3] = 1 << 0;  // cell (0,1): +1 (drivable is not viewed)
+  std::vector<float> out(64 * 64);
+  view_from_packed(v, packed.data(), out.data());
+  EXPECT_FLOAT_EQ(out[0], 0.25f);
+  EXPECT_FLOAT_EQ(out[1], 0.75f);
+  EXPECT_FLOAT_EQ(out[2], 0.0f);
+  // The same frame as 0/255 planes gives the same view.
+  std::vector<uint8_t> planes(5 * 128 * 128, 0);
+  for (size_t i = 0; i < packed.size(); ++i)
+    for (int c = 0; c < 5; ++c)
+      if (packed[i] >> c & 1) planes[c * 128 * 128 + i] = 255;
+  std::vector<float> out2(64 * 64);
+  view_from_planes(v, planes.data(), out2.data());
+  EXPECT_EQ(out, out2);
+  // 64x64 is taken as it is.
+  CimView same = resolve_view("vehicles", names, 64, 64);
+  std::vector<uint8_t> p64(64 * 64, 0);
+  p64[65] = 1 << 3;
+  view_from_packed(same, p64.data(), out.data());
+  EXPECT_FLOAT_EQ(out[65], 1.0f);
+  EXPECT_FLOAT_EQ(out[64], 0.0f);
+  try {
+    resolve_view("vehicles+cars", names, 64, 64);
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("'cars'"), std::string::npos) << e.what();
+  }
+}
+
+TEST(CimGroundTruth, DerivedCausesAndPearson) {
+  PackedEpisode ep;
+  ep.frames = 3;
+  ep.causes["lead_distance"] = {10, 100, 5};
+  ep.causes["lead_present"] = {1, 1, 0};
+  ep.causes["tl_state"] = {1, 2, 1};
+  ep.causes["tl_distance"] = {10, 40, 29};
+  EXPECT_DOUBLE_EQ(ground_truth_value(ep, "lead_distance", 0), 10);
+  EXPECT_DOUBLE_EQ(ground_truth_value(ep, "lead_distance", 1), 60);  // clamped
+  EXPECT_DOUBLE_EQ(ground_truth_value(ep, "lead_distance", 2), 60);  // no leader
+  EXPECT_DOUBLE_EQ(ground_truth_value(ep, "red_light", 0), 1);
+  EXPECT_DOUBLE_EQ(ground_truth_value(ep, "red_light", 1), 0);  // too far
+  EXPECT_DOUBLE_EQ(ground_truth_value(ep, "red_light", 2), 1);
+  EXPECT_TRUE(std::isnan(ground_truth_value(ep, "ped_on_path", 0)));
+  EXPECT_NEAR(pearson({1, 2, 3, 4}, {2, 4, 6, 8}), 1.0, 1e-12);
+  EXPECT_NEAR(pearson({1, 2, 3, 4}, {4, 3, 2, 1}), -1.0, 1e-12);
+  EXPECT_TRUE(std::isnan(pearson({1, 1, 1}, {1, 2, 3})));
+}
+
+TEST(CimPng, HeaderHasTheSize) {
+  test::TempDir dir("cdtest-png");
+  std::vector<uint8_t> rgb(7 * 5 * 3, 200);
+  write_png_rgb(dir / "a.png", rgb, 7, 5);
+  const std::string bytes = test::read_text(dir / "a.png");
+  ASSERT_GT(bytes.size(), 24u);
+  EXPECT_EQ(bytes.substr(1, 3), "PNG");
+  auto be32 = [&](size_t o) {
+    return (uint32_t(uint8_t(bytes[o])) << 24) | (uint32_t(uint8_t(bytes[o + 1])) << 16) |
+           (uint32_t(uint8_t(bytes[o + 2])) << 8) | uint32_t(uint8_t(bytes[o + 3]));
+  };
+  EXPECT_EQ(be32(16), 7u);
+  EXPECT_EQ(be32(20), 5u);
+  EXPECT_EQ(uint8_t(bytes[25]), 2);  // colour type RGB
+  EXPECT_THROW(write_png_gray(dir / "b.png", rgb, 7, 5), IoError);  // wrong size
+}
+
+}  // namespace
+}  // namespace cd

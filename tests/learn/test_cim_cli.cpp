@@ -1,0 +1,299 @@
+// The cim pipeline through the real binary on small hand-made folders: the run folder and its
+// stages, series.csv against causes.json and `causaldrive granger`, the pictures, few-shot
+// adaptation (--init), the VAE reuse checks, one-line errors; then a tiny run end to end in
+// the real simulator (collect, train cim, eval).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "agents/learned_agents.hpp"
+#include "core/error.hpp"
+#include "learn_data.hpp"
+
+namespace cd {
+namespace {
+
+using nlohmann::json;
+using test::CommandResult;
+using test::TempDir;
+
+const std::vector<std::string> kChannels = {"drivable", "markings", "route", "vehicles",
+                                            "pedestrians", "light_red", "light_green",
+                                            "light_yield"};
+
+// 64x64 frames: the road (drivable) always, a lead vehicle box (vehicles) whose gap to the
+// ego follows a slow wave per episode, and a speed that follows the gap two steps later.
+EpisodeData cim_episode(int episode, int frames) {
+  const int S = 64, C = 8;
+  EpisodeData d;
+  d.channels = C;
+  d.height = S;
+  d.width = S;
+  d.action_dim = 2;
+  d.bev_packed.assign(static_cast<size_t>(frames) * S * S, 0);
+  std::vector<double> gap;
+  for (int t = 0; t < frames; ++t)
+    gap.push_back(12 + 10 * std::sin(0.15 * t + episode * 1.3) + 2 * std::sin(0.71 * t * (episode + 1)));
+  for (int t = 0; t < frames; ++t) {
+    uint8_t* f = d.bev_packed.data() + static_cast<size_t>(t) * S * S;
+    for (int y = 0; y < S; ++y)
+      for (int x = 26; x < 38; ++x) f[y * S + x] |= 1;  // drivable
+    const int ego_row = 48, lead_row = ego_row - static_cast<int>(std::lround(gap[t] / 0.5));
+    for (int y = std::max(0, lead_row - 4); y < std::max(0, lead_row + 4); ++y)
+      for (int x = 29; x < 35; ++x) f[y * S + x] |= 1 << 3;  // vehicles
+    for (int y = ego_row - 4; y < ego_row + 4; ++y)
+      for (int x = 29; x < 35; ++x) f[y * S + x] |= 1 << 3;  // the ego is drawn too
+    const double speed = std::max(0.0, 0.4 * gap[std::max(0, t - 2)] - 1.0);
+    d.speed.push_back(static_cast<float>(speed));
+    d.action.insert(d.action.end(), {0.3f, 0.0f});
+    d.command.push_back(0);
+    d.pose.insert(d.pose.end(), {static_cast<float>(t), 0.0f, 0.0f});
+    d.causes["lead_distance"].push_back(static_cast<float>(gap[t]));
+    d.causes["lead_present"].push_back(1.0f);
+    d.causes["tl_state"].push_back(0.0f);
+    d.causes["tl_distance"].push_back(100.0f);
+    d.causes["path_free"].push_back(gap[t] > 8 ? 1.0f : 0.0f);
+    d.causes["ped_on_path"].push_back(0.0f);
+  }
+  return d;
+}
+
+void write_cim_folder(const std::string& dir, int episodes, int frames, int first = 0) {
+  test::fs::create_directories(dir);
+  test::FakeEpisodeSpec spec;
+  spec.height = spec.width = 64;
+  EpisodeMeta meta = test::fake_meta(spec);
+  meta.channels = kChannels;
+  for (int e = 0; e < episodes; ++e)
+    write_episode(dir + "/" + test::fake_episode_name(e), meta, cim_episode(first + e, frames));
+}
+
+std::string tiny_toml(const std::string& extra = "") {
+  return "[vae]\nlatents = 8\nepochs = 1\nbatch_size = 32\nmax_frames = 200\n"
+         "\n[cim]\nepochs = 2\nbatch_size = 64\nseries_stride = 2\nmax_causes = 2\nhidden = 16\n"
+         "\n[train]\nthreads = 1\nval_fraction = 0.25\n" + extra;
+}
+
+std::vector<std::string> train_args(const std::string& config, const std::string& method,
+                                    const std::string& data, const std::string& out,
+                                    std::vector<std::string> more = {}) {
+  std::vector<std::string> a = {"train", "--config", config, "--method", method, "--data", data,
+                                "--out", out};
+  a.insert(a.end(), more.begin(), more.end());
+  return a;
+}
+
+void expect_one_line_error(const CommandResult& r, const std::string& needle) {
+  EXPECT_TRUE(r.exited && r.exit_code == 1) << r.describe();
+  EXPECT_EQ(test::split_lines(r.err).size(), 1u) << r.describe();
+  EXPECT_NE(r.err.find(needle), std::string::npos) << r.describe();
+}
+
+json read_json(const std::string& path) { return json::parse(test::read_text(path)); }
+
+std::pair<uint32_t, uint32_t> png_size(const std::string& path) {
+  const std::string b = test::read_text(path);
+  EXPECT_GT(b.size(), 24u);
+  EXPECT_EQ(b.substr(1, 3), "PNG");
+  auto be32 = [&](size_t o) {
+    return (uint32_t(uint8_t(b[o])) << 24) | (uint32_t(uint8_t(b[o + 1])) << 16) |
+           (uint32_t(uint8_t(b[o + 2])) << 8) | uint32_t(uint8_t(b[o + 3]));
+  };
+  return {be32(16), be32(20)};
+}
+
+struct CimFixture {
+  TempDir dir{"cd-cim-cli"};
+  std::string config, data, run;
+  CimFixture() {
+    config = dir / "cim.toml";
+    test::write_text(config, tiny_toml());
+    data = dir / "data";
+    write_cim_folder(data, 4, 80);
+    run = dir / "run";
+  }
+};
+
+TEST(CimCli, PipelineWritesEveryStageAndGrangerReproducesTheTests) {
+  CimFixture f;
+  CommandResult r = test::run_cli(train_args(f.config, "cim", f.data, f.run));
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  EXPECT_NE(r.out.find("trained cim"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("causes:"), std::string::npos) << r.out;
+  EXPECT_EQ(test::list_dir(f.run),
+            (std::vector<std::string>{"causes.json", "granger.png", "predictor.pt",
+                                      "predictor_metrics.jsonl", "run.json", "series.csv",
+                                      "traversal.png", "vae.pt", "vae_metrics.jsonl"}));
+  json run = read_json(f.run + "/run.json");
+  EXPECT_EQ(run["method"], "cim");
+  EXPECT_EQ(run["stages"], json({"vae", "series", "causes", "predictor", "pictures"}));
+  EXPECT_EQ(run["settings"]["vae"]["latents"], 8);
+  EXPECT_EQ(run["settings"]["vae"]["beta"], 6.0);
+  EXPECT_EQ(run["input"]["view_channels"], json({3}));
+  EXPECT_EQ(run["figures"]["vae"]["frames"], 200);
+  auto vae_lines = test::split_lines(test::read_text(f.run + "/vae_metrics.jsonl"));
+  ASSERT_EQ(vae_lines.size(), 1u);
+  for (const char* k : {"recon", "kl", "loss", "seconds", "images_per_s"})
+    EXPECT_TRUE(json::parse(vae_lines[0])[k].is_number()) << k;
+
+  // series.csv: header, every 2nd frame of each episode.
+  auto lines = test::split_lines(test::read_text(f.run + "/series.csv"));
+  ASSERT_EQ(lines.size(), 1u + 4 * 40);
+  EXPECT_EQ(lines[0], "episode,speed,z0,z1,z2,z3,z4,z5,z6,z7");
+  json causes = read_json(f.run + "/causes.json");
+  EXPECT_EQ(causes["target"], "speed");
+  EXPECT_EQ(causes["lags"], 3);
+  EXPECT_EQ(causes["correction"], "bonferroni");
+  EXPECT_EQ(causes["rows"], 4 * (40 - 3));
+  ASSERT_EQ(causes["latents"].size(), 8u);
+  const auto selected = causes["selected"].get<std::vector<int>>();
+  ASSERT_GE(selected.size(), 1u);
+  EXPECT_LE(selected.size(), 2u);  // max_causes
+  EXPECT_EQ(causes["ground_truth"]["latents"].size(), selected.size());
+  for (const auto& g : causes["ground_truth"]["latents"])
+    EXPECT_TRUE(g["correlation"].contains("lead_distance"));
+
+  // The CLI's tests on series.csv give the same statistics as causes.json.
+  CommandResult g = test::run_cli({"granger", "--input", f.run, "--lags", "3", "--json"});
+  ASSERT_TRUE(g.exited && g.exit_code == 0) << g.describe();
+  json cli = json::parse(g.out);
+  ASSERT_EQ(cli.size(), 8u);
+  for (int i = 0; i < 8; ++i) {
+    EXPECT_EQ(cli[i]["variable"], "z" + std::to_string(i));
+    const double a = cli[i]["p_value"].get<double>(), b = causes["latents"][i]["p_value"].get<double>();
+    EXPECT_NEAR(a, b, 1e-9 * std::max(1.0, std::fabs(b))) << i;
+    EXPECT_NEAR(cli[i]["f_stat"].get<double>(), causes["latents"][i]["f_stat"].get<double>(),
+                1e-6 * std::max(1.0, causes["latents"][i]["f_stat"].get<double>()));
+    EXPECT_EQ(cli[i]["df_den"], causes["latents"][i]["df_den"]);
+  }
+
+  // Pictures: one traversal row per pick (9 cells of 128 px, 2-px separators) and the chart.
+  auto [tw, th] = png_size(f.run + "/traversal.png");
+  EXPECT_EQ(tw, 9u * 128 + 10 * 2);
+  EXPECT_EQ(th, causes["ranked"].size() * 128 + (causes["ranked"].size() + 1) * 2);
+  auto [gw, gh] = png_size(f.run + "/granger.png");
+  EXPECT_EQ(gw, 2u * 10 + 8 * (6 + 2) + 2);
+  EXPECT_EQ(gh, 2u * 10 + 240);
+
+  // Predictor: 2 epochs, samples t >= 2 and t + 1 < 80 in 3 training episodes.
+  EXPECT_EQ(run["figures"]["predictor"]["train_samples"], 3 * (80 - 3));
+  EXPECT_EQ(run["figures"]["predictor"]["val_samples"], 80 - 3);
+  EXPECT_EQ(test::split_lines(test::read_text(f.run + "/predictor_metrics.jsonl")).size(), 2u);
+
+  // A rerun skips every stage and changes nothing; the same settings in another folder give
+  // the same weights.
+  const std::string vae = test::read_text(f.run + "/vae.pt");
+  const std::string pred = test::read_text(f.run + "/predictor.pt");
+  CommandResult again = test::run_cli(train_args(f.config, "cim", f.data, f.run));
+  ASSERT_TRUE(again.exited && again.exit_code == 0) << again.describe();
+  EXPECT_NE(again.out.find("nothing left to train"), std::string::npos) << again.out;
+  EXPECT_EQ(test::read_text(f.run + "/predictor.pt"), pred);
+  CommandResult twin = test::run_cli(train_args(f.config, "cim", f.data, f.dir / "twin"));
+  ASSERT_TRUE(twin.exited && twin.exit_code == 0) << twin.describe();
+  EXPECT_EQ(test::read_text(f.dir / "twin/vae.pt"), vae);
+  EXPECT_EQ(test::read_text(f.dir / "twin/series.csv"), test::read_text(f.run + "/series.csv"));
+  EXPECT_EQ(test::read_text(f.dir / "twin/predictor.pt"), pred);
+
+  // The agent loads the run; another method's name is refused.
+  Settings s;
+  EXPECT_NO_THROW(load_cim_agent("cim", f.run, s));
+  EXPECT_THROW(load_cim_agent("cim-mlp", f.run, s), ConfigError);
+  EXPECT_THROW(load_cim_agent("cim", f.dir / "nowhere", s), ConfigError);
+}
+
+TEST(CimCli, FewShotReusesCausesAndTrainsOnMaxSamples) {
+  CimFixture f;
+  ASSERT_EQ(test::run_cli(train_args(f.config, "cim", f.data, f.run)).exit_code, 0);
+  const std::string other = f.dir / "other";
+  write_cim_folder(other, 4, 60, 10);
+  const std::string shot = f.dir / "shot";
+  CommandResult r = test::run_cli(train_args(f.config, "cim", other, shot,
+                                             {"--init", f.run, "--max-samples", "100"}));
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  json run = read_json(shot + "/run.json");
+  EXPECT_EQ(run["init"], test::fs::weakly_canonical(f.run).string());
+  EXPECT_EQ(run["figures"]["predictor"]["train_samples"], 100);
+  EXPECT_EQ(run["figures"]["predictor"]["val_samples"], 60 - 3);
+  EXPECT_EQ(test::read_text(shot + "/vae.pt"), test::read_text(f.run + "/vae.pt"));
+  json a = read_json(f.run + "/causes.json"), b = read_json(shot + "/causes.json");
+  EXPECT_EQ(a["selected"], b["selected"]);
+  EXPECT_FALSE(test::fs::exists(shot + "/series.csv"));  // no new selection
+  // Epoch 0 is the init predictor on the new data, then the fine-tuning epochs.
+  auto lines = test::split_lines(test::read_text(shot + "/predictor_metrics.jsonl"));
+  ASSERT_EQ(lines.size(), 3u);
+  EXPECT_EQ(json::parse(lines[0])["epoch"], 0);
+  EXPECT_TRUE(json::parse(lines[0])["val_loss"].is_number());
+
+  expect_one_line_error(test::run_cli(train_args(f.config, "cim", other, f.dir / "x1",
+                                                 {"--init", f.dir / "missing"})),
+                        "no such run folder");
+  expect_one_line_error(test::run_cli(train_args(f.config, "cim-mlp", other, f.dir / "x2",
+                                                 {"--init", f.run})),
+                        "holds a run of method 'cim'");
+}
+
+TEST(CimCli, VaeReuseAndFolderChecksGiveOneLineErrors) {
+  CimFixture f;
+  ASSERT_EQ(test::run_cli(train_args(f.config, "cim", f.data, f.run)).exit_code, 0);
+  // cim-mlp may share cim's VAE (same beta); cim-entangled needs beta 1.
+  const std::string mlp = f.dir / "mlp";
+  CommandResult r = test::run_cli(train_args(f.config, "cim-mlp", f.data, mlp, {"--vae", f.run}));
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  EXPECT_EQ(test::read_text(mlp + "/vae.pt"), test::read_text(f.run + "/vae.pt"));
+  json causes = read_json(mlp + "/causes.json");
+  EXPECT_EQ(causes["selected"].size(), 8u);  // all latents
+  EXPECT_EQ(read_json(mlp + "/run.json")["figures"]["predictor"]["variables"], 8);
+  EXPECT_NO_THROW(load_cim_agent("cim-mlp", mlp, Settings{}));
+
+  expect_one_line_error(test::run_cli(train_args(f.config, "cim-entangled", f.data,
+                                                 f.dir / "ent", {"--vae", f.run})),
+                        "vae.beta 6");
+  expect_one_line_error(test::run_cli(train_args(f.config, "cim-mlp", f.data, f.run)),
+                        "holds a run of method 'cim'");
+  const std::string other_cfg = f.dir / "other.toml";
+  test::write_text(other_cfg, "[vae]\nlatents = 4\nepochs = 1\nmax_frames = 100\n[train]\nthreads = 1\n");
+  expect_one_line_error(test::run_cli(train_args(other_cfg, "cim", f.data, f.run)),
+                        "other settings");
+  expect_one_line_error(test::run_cli(train_args(f.config, "cim", f.data, f.dir / "y",
+                                                 {"--vae", f.data})),
+                        "not a cim run folder");
+}
+
+// In the real simulator: collect two short episodes, train a tiny cim, evaluate it on one
+// short task; the agent drives (its own target speeds) and the results have the contract keys.
+TEST(CimEval, TinyRunDrivesInTheSimulator) {
+  TempDir dir("cdtest-cim-eval");
+  const std::string cfg = test::write_test_config(
+      dir, "regular",
+      "\n[vae]\nlatents = 16\nepochs = 1\nmax_frames = 300\n"
+      "\n[cim]\nepochs = 1\nmax_causes = 2\n\n[train]\nthreads = 1\n");
+  auto c = test::run_cli({"collect", "--config", cfg, "--out", dir / "data"});
+  ASSERT_EQ(c.exit_code, 0) << c.describe();
+  auto t = test::run_cli({"train", "--config", cfg, "--method", "cim", "--data", dir / "data",
+                          "--out", dir / "run"});
+  ASSERT_EQ(t.exit_code, 0) << t.describe();
+  const std::string suite = dir / "one.json";
+  auto s = test::run_cli({"suite", "--town", "town-a", "--traffic", "regular", "--tasks", "1",
+                          "--trials", "1", "--seed", "3", "--min-route", "100", "--max-route",
+                          "150", "--scenarios", "leader", "--out", suite});
+  ASSERT_EQ(s.exit_code, 0) << s.describe();
+  auto e = test::run_cli({"eval", "--config", cfg, "--agent", "cim", "--checkpoint", dir / "run",
+                          "--suite", suite, "--workers", "1", "--out", dir / "eval", "--quiet"});
+  ASSERT_EQ(e.exit_code, 0) << e.describe();
+  EXPECT_NE(e.out.find("| cim |"), std::string::npos) << e.out;
+  json res = read_json(dir / "eval/results.json");
+  EXPECT_EQ(res["agent"], "cim");
+  ASSERT_EQ(res["episodes"].size(), 1u);
+  EXPECT_EQ(res["summary"]["infrastructure_failures"], 0);
+  const std::string outcome = res["episodes"][0]["outcome"];
+  EXPECT_TRUE(outcome == "success" || outcome == "collision" || outcome == "timeout" ||
+              outcome == "inertia")
+      << outcome;
+}
+
+}  // namespace
+}  // namespace cd
