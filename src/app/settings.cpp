@@ -139,6 +139,7 @@ void visit_settings(S& st, V&& v) {
   v.integer("dim", "hidden", st.dim.hidden, 8, 4096);
   v.number("dim", "min_std", st.dim.min_std, 1e-4, 10);
   v.integer("dim", "plan_iterations", st.dim.plan_iterations, 0, 10000);
+  v.integer("dim", "replan_steps", st.dim.replan_steps, 1, 100);
   v.number("dim", "plan_lr", st.dim.plan_lr, 0, 100);
   v.number("dim", "goal_distance", st.dim.goal_distance, 0, 1000);
   v.number("dim", "goal_weight", st.dim.goal_weight, 0, 1000);

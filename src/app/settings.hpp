@@ -155,7 +155,8 @@ struct DimSettings {
   int features = 128;       // width of the BEV encoder output
   int hidden = 128;
   double min_std = 0.05;    // m, lower bound of each step's standard deviation
-  int plan_iterations = 30; // gradient-ascent steps of the planner
+  int plan_iterations = 10; // gradient-ascent steps of the planner
+  int replan_steps = 2;     // the agent plans every this many simulation steps
   double plan_lr = 0.2;     // m per step (Adam)
   double goal_distance = 20;  // m along the route: the goal the plan is pulled toward
   double goal_weight = 0.02;  // weight of -|last waypoint - goal|^2 (per m^2) in the objective
