@@ -126,7 +126,7 @@ struct VaeSettings {
   double beta = 6.0;     // cim and cim-mlp; cim-entangled trains with beta = 1
   int epochs = 4;
   int batch_size = 64;
-  double lr = 3e-4;
+  double lr = 1e-3;
   long max_frames = 30000;  // seeded subset of the data's frames it trains on, 0 = all
 };
 
@@ -142,7 +142,7 @@ struct CimSettings {
   int encoder_units = 16;               // per-variable linear encoder of cim, cim-entangled
   int mlp_encoder_units = 8;            // per-variable encoder of cim-mlp (all latents)
   int hidden = 64;                      // width of the predictor MLP
-  int epochs = 10;                      // speed predictor epochs
+  int epochs = 50;                      // speed predictor epochs
   int batch_size = 256;
   double lr = 1e-3;
 };

@@ -716,6 +716,7 @@ TrainSummary train_cim(const Settings& settings_in, const TrainRequest& req) {
   sum.method = req.method;
   sum.out_dir = out;
   sum.device = device_name;
+  sum.weights_file = kCimPredictorFile;
   if (!done("predictor")) {
     const std::string init_bytes =
         init_run ? read_file_bytes(init_run->dir + "/" + kCimPredictorFile) : std::string();

@@ -1,0 +1,48 @@
+// The main job end to end on a tiny config: collect, train bc-oh and cim, evaluate four agents,
+// print the table, and resume everything when run again.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include "../support/test_support.hpp"
+
+namespace cd {
+namespace {
+
+namespace fs = std::filesystem;
+using test::TempDir;
+
+TEST(Quickstart, RunsTheWholeChainAndResumes) {
+  TempDir dir("cdtest-quickstart");
+  const std::string suite = dir / "one.json";
+  auto s = test::run_cli({"suite", "--town", "town-a", "--traffic", "regular", "--tasks", "1",
+                          "--trials", "1", "--seed", "5", "--min-route", "100", "--max-route",
+                          "150", "--scenarios", "leader", "--out", suite});
+  ASSERT_EQ(s.exit_code, 0) << s.describe();
+  const std::string cfg = test::write_test_config(
+      dir, "regular",
+      "\n[train]\nepochs = 1\nthreads = 1\nout = \"" + (dir / "train") + "\"\n" +
+          "\n[vae]\nlatents = 16\nepochs = 1\nmax_frames = 300\n" +
+          "\n[cim]\nepochs = 1\nmax_causes = 2\n" + "\n[eval]\nsuite = \"" + suite +
+          "\"\nworkers = 1\nout = \"" + (dir / "eval") + "\"\n");
+  auto r = test::run_cli({"quickstart", "--config", cfg, "--out", dir / "data"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  for (const char* agent : {"expert", "cs", "bc-oh", "cim"}) {
+    SCOPED_TRACE(agent);
+    EXPECT_NE(r.out.find(std::string("| ") + agent + " "), std::string::npos) << r.out;
+    EXPECT_TRUE(fs::exists(dir / ("eval/" + std::string(agent) + "/results.json")));
+  }
+  EXPECT_TRUE(fs::exists(dir / "train/cim/causes.json"));
+  EXPECT_TRUE(fs::exists(dir / "train/bc-oh/best.pt"));
+  EXPECT_EQ(test::list_dir(dir / "data").size(), 3u) << "2 episodes and collect.json";
+
+  // A second run finds everything done and prints the same table.
+  const std::string before = test::read_text(dir / "eval/cim/results.json");
+  auto again = test::run_cli({"quickstart", "--config", cfg, "--out", dir / "data"});
+  ASSERT_EQ(again.exit_code, 0) << again.describe();
+  EXPECT_EQ(test::read_text(dir / "eval/cim/results.json"), before);
+  EXPECT_NE(again.out.find("nothing left to train"), std::string::npos) << again.out;
+}
+
+}  // namespace
+}  // namespace cd
