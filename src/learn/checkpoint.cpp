@@ -13,6 +13,40 @@ namespace cd {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
+const json& JsonFields::at(const char* key) const {
+  if (!j.is_object() || !j.contains(key)) throw DataError(where + ": missing key '" + key + "'");
+  return j.at(key);
+}
+
+void JsonFields::throw_wrong_type(const char* key) const {
+  throw DataError(where + ": key '" + key + "' has the wrong type");
+}
+
+std::string settings_diff(const json& stored, const json& now,
+                          const std::vector<std::string>& tables,
+                          const std::function<bool(const std::string&, const std::string&)>& ignore) {
+  std::string diff;
+  for (const std::string& table : tables) {
+    const json& a = stored.contains(table) ? stored.at(table) : json::object();
+    const json& b = now.at(table);
+    for (auto it = b.begin(); it != b.end(); ++it) {
+      if (ignore(table, it.key())) continue;
+      const json old = a.contains(it.key()) ? a.at(it.key()) : json();
+      if (old == it.value()) continue;
+      diff += (diff.empty() ? "" : ", ") + table + "." + it.key() + " " + old.dump() + " -> " +
+              it.value().dump();
+    }
+  }
+  return diff;
+}
+
+std::string canonical_dir(const std::string& dir) {
+  if (dir.empty()) return dir;
+  std::error_code ec;
+  std::filesystem::path p = std::filesystem::weakly_canonical(std::filesystem::absolute(dir), ec);
+  return ec ? dir : p.string();
+}
+
 namespace {
 
 json metrics_json(const EpochMetrics& m) {
@@ -26,28 +60,9 @@ json metrics_json(const EpochMetrics& m) {
   return j;
 }
 
-// Typed access that turns nlohmann's exceptions into one DataError naming the file and key.
-struct Fields {
-  const json& j;
-  const std::string& where;
-
-  const json& at(const char* key) const {
-    if (!j.is_object() || !j.contains(key))
-      throw DataError(where + ": missing key '" + key + "'");
-    return j.at(key);
-  }
-  template <class T>
-  T get(const char* key) const {
-    try {
-      return at(key).get<T>();
-    } catch (const json::exception&) {
-      throw DataError(where + ": key '" + key + "' has the wrong type");
-    }
-  }
-};
 
 ModelSettings model_from_json(const json& j, const std::string& where) {
-  Fields f{j, where};
+  JsonFields f{j, where};
   ModelSettings m;
   m.backbone = f.get<std::string>("backbone");
   m.history = f.get<int>("history");
@@ -93,7 +108,7 @@ json checkpoint_to_json(const Checkpoint& c) {
 }
 
 Checkpoint checkpoint_from_json(const json& j, const std::string& where) {
-  Fields f{j, where};
+  JsonFields f{j, where};
   if (f.get<std::string>("format") != "causaldrive-checkpoint")
     throw DataError(where + ": not a causaldrive checkpoint");
   if (int v = f.get<int>("version"); v != kCheckpointVersion)
@@ -102,8 +117,8 @@ Checkpoint checkpoint_from_json(const json& j, const std::string& where) {
   Checkpoint c;
   c.method = f.get<std::string>("method");
   c.settings = f.at("settings");
-  c.model = model_from_json(Fields{c.settings, where}.at("model"), where + " (settings.model)");
-  Fields in{f.at("input"), where};
+  c.model = model_from_json(JsonFields{c.settings, where}.at("model"), where + " (settings.model)");
+  JsonFields in{f.at("input"), where};
   c.input.channels = in.get<int>("channels");
   c.input.height = in.get<int>("height");
   c.input.width = in.get<int>("width");
@@ -116,7 +131,7 @@ Checkpoint checkpoint_from_json(const json& j, const std::string& where) {
       c.input.stride < 1)
     throw DataError(where + ": input format out of range");
   c.data_dir = f.get<std::string>("data");
-  Fields samples{f.at("samples"), where}, episodes{f.at("episodes"), where};
+  JsonFields samples{f.at("samples"), where}, episodes{f.at("episodes"), where};
   c.train_samples = samples.get<long>("train");
   c.val_samples = samples.get<long>("val");
   c.train_episodes = episodes.get<int>("train");
@@ -130,7 +145,7 @@ Checkpoint checkpoint_from_json(const json& j, const std::string& where) {
   const json& metrics = f.at("metrics");
   if (!metrics.is_array()) throw DataError(where + ": 'metrics' is not an array");
   for (const json& mj : metrics) {
-    Fields mf{mj, where};
+    JsonFields mf{mj, where};
     EpochMetrics m;
     m.epoch = mf.get<int>("epoch");
     m.train_loss = mf.get<double>("train_loss");

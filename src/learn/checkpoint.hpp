@@ -13,6 +13,7 @@
 // checkpoint.json (saying N epochs) is written atomically — the commit — and then the pending
 // files are renamed to their final names. A later run first rolls pending files of the
 // committed epoch forward and deletes any others (an epoch that was never committed).
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -63,6 +64,37 @@ struct Checkpoint {
   int bad_epochs = 0;       // epochs since the last improvement (plateau schedule)
   std::vector<EpochMetrics> metrics;
 };
+
+// Typed access to a JSON object read from `where`: nlohmann's exceptions become one DataError
+// naming the file and the key. Shared by every run record (checkpoint.json, dim.json, ...).
+struct JsonFields {
+  const nlohmann::json& j;
+  const std::string& where;
+
+  const nlohmann::json& at(const char* key) const;
+  template <class T>
+  T get(const char* key) const {
+    try {
+      return at(key).get<T>();
+    } catch (const nlohmann::json::exception&) {
+      throw_wrong_type(key);
+    }
+  }
+
+ private:
+  [[noreturn]] void throw_wrong_type(const char* key) const;
+};
+
+// "table.key old -> new, ..." for every key of now[table], for each table, whose value differs
+// from stored[table] (a missing one counts as null), unless ignore(table, key). Empty when the
+// settings agree: how every trainer refuses to resume a folder trained with other settings.
+std::string settings_diff(const nlohmann::json& stored, const nlohmann::json& now,
+                          const std::vector<std::string>& tables,
+                          const std::function<bool(const std::string&, const std::string&)>& ignore);
+
+// The absolute, normalised form of a folder path (as given when it cannot be resolved; "" stays
+// ""): how run records name their data and init folders.
+std::string canonical_dir(const std::string& dir);
 
 nlohmann::json checkpoint_to_json(const Checkpoint& c);
 // Throws DataError naming `where` when a key is missing or has the wrong type.

@@ -33,6 +33,7 @@
 #include "core/error.hpp"
 #include "core/progress.hpp"
 #include "core/rng.hpp"
+#include "learn/checkpoint.hpp"
 #include "learn/cim_data.hpp"
 #include "learn/cim_pictures.hpp"
 #include "learn/dataset.hpp"
@@ -59,13 +60,6 @@ double seconds_since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
 }
 
-std::string canonical(const std::string& dir) {
-  if (dir.empty()) return dir;
-  std::error_code ec;
-  fs::path p = fs::weakly_canonical(fs::absolute(dir), ec);
-  return ec ? dir : p.string();
-}
-
 void say(bool quiet, const std::string& line, FILE* to = stdout) {
   if (quiet && to == stdout) return;
   std::fprintf(to, "%s\n", line.c_str());
@@ -78,19 +72,11 @@ std::string fmt(const char* f, double v) {
   return b;
 }
 
-// Settings a rerun into the same folder must share: everything the stages read.
-std::string settings_diff(const json& stored, const json& now) {
-  std::string diff;
-  auto cmp = [&](const std::string& table, const std::string& key) {
-    const json a = stored.contains(table) && stored.at(table).contains(key) ? stored.at(table).at(key)
-                                                                          : json();
-    const json& b = now.at(table).at(key);
-    if (a != b) diff += (diff.empty() ? "" : ", ") + table + "." + key + " " + a.dump() + " -> " + b.dump();
-  };
-  for (const char* table : {"vae", "cim", "bev"})
-    for (auto it = now.at(table).begin(); it != now.at(table).end(); ++it) cmp(table, it.key());
-  for (const char* key : {"seed", "val_fraction", "max_samples", "loss"}) cmp("train", key);
-  return diff;
+// Settings a rerun into the same folder must share: everything the stages read ([vae], [cim],
+// [bev] and these [train] keys).
+bool may_differ(const std::string& table, const std::string& key) {
+  return table == "train" &&
+         !(key == "seed" || key == "val_fraction" || key == "max_samples" || key == "loss");
 }
 
 void check_same_vae(const CimRunInfo& src, const VaeSettings& want, const std::string& method,
@@ -556,8 +542,8 @@ TrainSummary train_cim(const Settings& settings_in, const TrainRequest& req) {
   if (!req.init.empty() && !req.vae_from.empty())
     throw ConfigError("give --init or --vae, not both (--init already brings its run's VAE)");
   const std::string out = req.out_dir;
-  const std::string data_dir = canonical(req.data_dir);
-  const std::string init_dir = canonical(req.init), vae_dir = canonical(req.vae_from);
+  const std::string data_dir = canonical_dir(req.data_dir);
+  const std::string init_dir = canonical_dir(req.init), vae_dir = canonical_dir(req.vae_from);
   const json settings_json = settings_to_json(s);
 
   // Refusals first, before any data is read.
@@ -566,7 +552,8 @@ TrainSummary train_cim(const Settings& settings_in, const TrainRequest& req) {
     if (previous->method != req.method)
       throw ConfigError(out + " holds a run of method '" + previous->method + "', not '" +
                         req.method + "': train into another --out folder");
-    const std::string diff = settings_diff(previous->record.at("settings"), settings_json);
+    const std::string diff = settings_diff(previous->record.at("settings"), settings_json,
+                                             {"vae", "cim", "bev", "train"}, may_differ);
     if (!diff.empty())
       throw ConfigError(out + " holds a run trained with other settings (" + diff +
                         "): train into another --out folder, or delete it to start over");

@@ -14,28 +14,9 @@ using nlohmann::json;
 
 namespace {
 
-// Typed access turning nlohmann's exceptions into one DataError naming the file and key.
-struct Fields {
-  const json& j;
-  const std::string& where;
-
-  const json& at(const char* key) const {
-    if (!j.is_object() || !j.contains(key))
-      throw DataError(where + ": missing key '" + key + "'");
-    return j.at(key);
-  }
-  template <class T>
-  T get(const char* key) const {
-    try {
-      return at(key).get<T>();
-    } catch (const json::exception&) {
-      throw DataError(where + ": key '" + key + "' has the wrong type");
-    }
-  }
-};
 
 DimSettings dim_from_json(const json& j, const std::string& where) {
-  Fields f{j, where};
+  JsonFields f{j, where};
   DimSettings d;
   d.horizon = f.get<int>("horizon");
   d.waypoint_step = f.get<int>("waypoint_step");
@@ -109,7 +90,7 @@ json dim_run_to_json(const DimRun& r) {
 }
 
 DimRun dim_run_from_json(const json& j, const std::string& where) {
-  Fields f{j, where};
+  JsonFields f{j, where};
   if (f.get<std::string>("format") != "causaldrive-dim-run")
     throw DataError(where + ": not a causaldrive dim run record");
   if (int v = f.get<int>("version"); v != kDimRunVersion)
@@ -118,8 +99,8 @@ DimRun dim_run_from_json(const json& j, const std::string& where) {
   DimRun r;
   r.method = f.get<std::string>("method");
   r.settings = f.at("settings");
-  r.dim = dim_from_json(Fields{r.settings, where}.at("dim"), where + " (settings.dim)");
-  Fields in{f.at("input"), where};
+  r.dim = dim_from_json(JsonFields{r.settings, where}.at("dim"), where + " (settings.dim)");
+  JsonFields in{f.at("input"), where};
   r.input.channels = in.get<int>("channels");
   r.input.height = in.get<int>("height");
   r.input.width = in.get<int>("width");
@@ -129,7 +110,7 @@ DimRun dim_run_from_json(const json& j, const std::string& where) {
   if (r.input.channels < 1 || r.input.height < 1 || r.input.width < 1 || r.input.dt <= 0)
     throw DataError(where + ": input format out of range");
   r.data_dir = f.get<std::string>("data");
-  Fields samples{f.at("samples"), where}, episodes{f.at("episodes"), where};
+  JsonFields samples{f.at("samples"), where}, episodes{f.at("episodes"), where};
   r.train_samples = samples.get<long>("train");
   r.val_samples = samples.get<long>("val");
   r.train_episodes = episodes.get<int>("train");
@@ -138,7 +119,7 @@ DimRun dim_run_from_json(const json& j, const std::string& where) {
   const json& members = f.at("members");
   if (!members.is_array()) throw DataError(where + ": key 'members' is not an array");
   for (const json& mj : members) {
-    Fields m{mj, where};
+    JsonFields m{mj, where};
     DimMember d;
     d.index = m.get<int>("member");
     d.finished = m.get<bool>("finished");
@@ -149,7 +130,7 @@ DimRun dim_run_from_json(const json& j, const std::string& where) {
     const json& metrics = m.at("metrics");
     if (!metrics.is_array()) throw DataError(where + ": a member's 'metrics' is not an array");
     for (const json& ej : metrics) {
-      Fields e{ej, where};
+      JsonFields e{ej, where};
       DimEpochMetrics em;
       em.member = e.get<int>("member");
       em.epoch = e.get<int>("epoch");

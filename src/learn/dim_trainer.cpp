@@ -52,28 +52,6 @@ bool may_differ(const std::string& table, const std::string& key) {
   return table == "train" && (key == "out" || key == "threads" || key == "device");
 }
 
-std::string settings_diff(const json& stored, const json& now) {
-  std::string diff;
-  for (const char* table : {"dim", "train"}) {
-    const json& a = stored.contains(table) ? stored.at(table) : json::object();
-    const json& b = now.at(table);
-    for (auto it = b.begin(); it != b.end(); ++it) {
-      if (may_differ(table, it.key())) continue;
-      const json old = a.contains(it.key()) ? a.at(it.key()) : json();
-      if (old == it.value()) continue;
-      diff += (diff.empty() ? "" : ", ") + std::string(table) + "." + it.key() + " " +
-              old.dump() + " -> " + it.value().dump();
-    }
-  }
-  return diff;
-}
-
-std::string canonical(const std::string& dir) {
-  std::error_code ec;
-  fs::path p = fs::weakly_canonical(fs::absolute(dir), ec);
-  return ec ? dir : p.string();
-}
-
 // n of v chosen by a seeded partial shuffle, kept in their original order.
 std::vector<SampleRef> subset(const std::vector<SampleRef>& v, size_t n, Rng& rng) {
   if (n >= v.size()) return v;
@@ -194,7 +172,7 @@ TrainSummary train_dim(const Settings& settings_in, const TrainRequest& req) {
   const Settings s = effective_settings(req.method, settings_in);
   if (req.out_dir.empty()) throw ConfigError("train: no output folder given (--out)");
   const std::string out = req.out_dir;
-  const std::string data_dir = canonical(req.data_dir);
+  const std::string data_dir = canonical_dir(req.data_dir);
   const json settings_json = settings_to_json(s);
   const DimSettings& d = s.dim;
 
@@ -205,7 +183,8 @@ TrainSummary train_dim(const Settings& settings_in, const TrainRequest& req) {
     if (previous->method != req.method)
       throw ConfigError(out + " holds a run of method '" + previous->method + "', not '" +
                         req.method + "': train into another --out folder");
-    const std::string diff = settings_diff(previous->settings, settings_json);
+    const std::string diff =
+        settings_diff(previous->settings, settings_json, {"dim", "train"}, may_differ);
     if (!diff.empty())
       throw ConfigError(out + " holds a " + req.method + " run trained with other settings (" +
                         diff + "): train into another --out folder, or delete it to start over");

@@ -33,36 +33,13 @@ bool may_differ(const std::string& table, const std::string& key) {
                               key == "device");
 }
 
-// "model.history 4 -> 8, train.lr ..." for the [model] and [train] keys that differ.
-std::string settings_diff(const json& stored, const json& now) {
-  std::string diff;
-  for (const char* table : {"model", "train"}) {
-    const json& a = stored.contains(table) ? stored.at(table) : json::object();
-    const json& b = now.at(table);
-    for (auto it = b.begin(); it != b.end(); ++it) {
-      if (may_differ(table, it.key())) continue;
-      const json old = a.contains(it.key()) ? a.at(it.key()) : json();
-      if (old == it.value()) continue;
-      diff += (diff.empty() ? "" : ", ") + std::string(table) + "." + it.key() + " " +
-              old.dump() + " -> " + it.value().dump();
-    }
-  }
-  return diff;
-}
-
-std::string canonical(const std::string& dir) {
-  std::error_code ec;
-  fs::path p = fs::weakly_canonical(fs::absolute(dir), ec);
-  return ec ? dir : p.string();
-}
-
 void check_resumable(const Checkpoint& c, const std::string& method, const json& settings,
                      const std::string& data_dir, const std::string& out_dir) {
   const std::string where = out_dir + "/" + kCheckpointJson;
   if (c.method != method)
     throw ConfigError(out_dir + " holds a checkpoint of method '" + c.method +
                       "', not '" + method + "': train into another --out folder");
-  std::string diff = settings_diff(c.settings, settings);
+  std::string diff = settings_diff(c.settings, settings, {"model", "train"}, may_differ);
   if (!diff.empty())
     throw ConfigError(out_dir + " holds a checkpoint trained with other settings (" + diff +
                       "): train into another --out folder, or delete it to start over");
@@ -163,7 +140,7 @@ TrainSummary train_policy(const Settings& settings_in, const TrainRequest& req) 
   const Settings s = effective_settings(req.method, settings_in);
   if (req.out_dir.empty()) throw ConfigError("train: no output folder given (--out)");
   const std::string out = req.out_dir;
-  const std::string data_dir = canonical(req.data_dir);
+  const std::string data_dir = canonical_dir(req.data_dir);
   const json settings_json = settings_to_json(s);
 
   // A folder that holds another run is refused before any data is read.
