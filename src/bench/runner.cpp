@@ -126,10 +126,9 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
     obs.y = pose.pos.y;
     obs.heading = pose.heading;
     if (goal_distance > 0) {
-      Vec2 g = world.path_point(goal_distance) - pose.pos;
-      double c = std::cos(pose.heading), s = std::sin(pose.heading);
-      obs.goal_x = c * g.x + s * g.y;
-      obs.goal_y = -s * g.x + c * g.y;
+      const Vec2 g = to_ego_frame(pose, world.path_point(goal_distance));
+      obs.goal_x = g.x;
+      obs.goal_y = g.y;
     }
     Control c = agent.act(obs, world);
     if (trace_csv) {

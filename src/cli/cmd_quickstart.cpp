@@ -53,11 +53,11 @@ void add_quickstart(CLI::App& app) {
 
     // Both learners see the same recorded episodes; their folders resume on a rerun.
     const std::string train_root = s.train.out;
-    TrainRequest bc{"bc-oh", s.collect.out, train_root + "/bc-oh", false};
+    TrainRequest bc{"bc-oh", s.collect.out, train_root + "/bc-oh", false, "", ""};
     heading("2/4 training bc-oh (behaviour cloning from " + std::to_string(s.model.history) +
             " stacked frames) -> " + bc.out_dir);
     print_train_summary(train_policy(s, bc));
-    TrainRequest cim{"cim", s.collect.out, train_root + "/cim", false};
+    TrainRequest cim{"cim", s.collect.out, train_root + "/cim", false, "", ""};
     heading("3/4 training cim: beta-VAE, Granger cause selection, causal speed predictor -> " +
             cim.out_dir);
     print_train_summary(train_cim(s, cim));

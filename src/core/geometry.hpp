@@ -21,6 +21,13 @@ struct Pose2 {
   double heading = 0;
 };
 
+// Point p (network frame) in the frame of `ego`: x forward along its heading, y to its left.
+inline Vec2 to_ego_frame(const Pose2& ego, Vec2 p) {
+  const double c = std::cos(ego.heading), s = std::sin(ego.heading);
+  const Vec2 d = p - ego.pos;
+  return {c * d.x + s * d.y, -s * d.x + c * d.y};
+}
+
 // SUMO reports compass degrees (0 = north, clockwise); convert to our heading.
 inline double heading_from_sumo_angle(double deg) {
   return (90.0 - deg) * M_PI / 180.0;

@@ -238,15 +238,8 @@ DimPlanner::DimPlanner(const std::string& dir, const std::string& expected_metho
                     " members): rerun the same `causaldrive train` command");
   impl_->run = *run;
   const DimSettings& d = run->dim;
-  DimNetOptions no;
-  no.channels = run->input.channels;
-  no.height = run->input.height;
-  no.width = run->input.width;
-  no.horizon = d.horizon;
-  no.past = d.past;
-  no.features = d.features;
-  no.hidden = d.hidden;
-  no.min_std = d.min_std;
+  const DimNetOptions no =
+      dim_net_options(d, run->input.channels, run->input.height, run->input.width);
   std::vector<DimNet> members;
   for (const DimMember& m : run->members) {
     DimNet net(no);

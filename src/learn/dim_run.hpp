@@ -23,6 +23,7 @@
 #include <nlohmann/json.hpp>
 
 #include "app/settings.hpp"
+#include "core/geometry.hpp"
 #include "learn/checkpoint.hpp"
 #include "learn/episode_set.hpp"
 
@@ -118,9 +119,9 @@ class DimPlanner {
 
 inline void to_ego_frame(double x0, double y0, double h0, double x, double y, double& ex,
                          double& ey) {
-  const double c = std::cos(h0), s = std::sin(h0), dx = x - x0, dy = y - y0;
-  ex = c * dx + s * dy;
-  ey = -s * dx + c * dy;
+  const Vec2 e = to_ego_frame(Pose2{{x0, y0}, h0}, Vec2{x, y});
+  ex = e.x;
+  ey = e.y;
 }
 
 }  // namespace cd

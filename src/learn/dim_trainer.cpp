@@ -248,15 +248,7 @@ TrainSummary train_dim(const Settings& settings_in, const TrainRequest& req) {
   remove_stale_temporaries(out);
   write_file_atomic(out + "/" + kDimJson, dim_run_to_json(run).dump(2) + "\n");
 
-  DimNetOptions no;
-  no.channels = eps.channels;
-  no.height = eps.height;
-  no.width = eps.width;
-  no.horizon = d.horizon;
-  no.past = d.past;
-  no.features = d.features;
-  no.hidden = d.hidden;
-  no.min_std = d.min_std;
+  const DimNetOptions no = dim_net_options(d, eps.channels, eps.height, eps.width);
 
   const int epochs = s.train.epochs;
   const int B = s.train.batch_size;

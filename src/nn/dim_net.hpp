@@ -21,6 +21,7 @@
 
 #include <torch/torch.h>
 
+#include "app/settings.hpp"
 #include "nn/policy_net.hpp"
 
 namespace cd {
@@ -30,6 +31,20 @@ struct DimNetOptions {
   int horizon = 4, past = 4, features = 128, hidden = 128;
   double min_std = 0.05;
 };
+
+// The network of the [dim] settings for frames of C x H x W.
+inline DimNetOptions dim_net_options(const DimSettings& d, int channels, int height, int width) {
+  DimNetOptions o;
+  o.channels = channels;
+  o.height = height;
+  o.width = width;
+  o.horizon = d.horizon;
+  o.past = d.past;
+  o.features = d.features;
+  o.hidden = d.hidden;
+  o.min_std = d.min_std;
+  return o;
+}
 
 // What an observation conditions the density on. context: K x B x hidden (K members; K = 1
 // for one net), past1: B x 2, the position one waypoint step ago (the verlet term).
