@@ -1,7 +1,10 @@
 #pragma once
 // Seeded randomness with results fixed by this code alone (std:: distributions differ between
 // library versions, which would break "same seed, same bytes").
+#include <cstddef>
 #include <cstdint>
+#include <utility>
+#include <vector>
 
 namespace cd {
 
@@ -41,5 +44,27 @@ class Rng {
   static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
   uint64_t s_[4];
 };
+
+// Fisher-Yates from the back: every permutation of v from rng. The one shuffle of the project
+// (epoch orders, validation splits); its exact sequence of draws is part of "same bytes".
+template <class T>
+void shuffle(std::vector<T>& v, Rng& rng) {
+  for (size_t i = v.size(); i > 1; --i) std::swap(v[i - 1], v[rng.below(i)]);
+}
+
+// Fisher-Yates from the front, stopped after k draws: v[0..k) is a uniform k-subset of v.
+template <class T>
+void partial_shuffle(std::vector<T>& v, size_t k, Rng& rng) {
+  for (size_t i = 0; i < k && i < v.size(); ++i) std::swap(v[i], v[i + rng.below(v.size() - i)]);
+}
+
+// 0..n-1 shuffled by Rng(seed): the order in which a training epoch visits its samples.
+inline std::vector<uint32_t> shuffled_order(size_t n, uint64_t seed) {
+  std::vector<uint32_t> order(n);
+  for (size_t i = 0; i < n; ++i) order[i] = static_cast<uint32_t>(i);
+  Rng rng(seed);
+  shuffle(order, rng);
+  return order;
+}
 
 }  // namespace cd

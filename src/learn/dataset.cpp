@@ -15,11 +15,6 @@ namespace {
 constexpr uint64_t kSplitStream = 0x5011;
 constexpr uint64_t kSubsetStream = 0x5012;
 
-template <class T>
-void shuffle(std::vector<T>& v, Rng& rng) {
-  for (size_t i = v.size(); i > 1; --i) std::swap(v[i - 1], v[rng.below(i)]);
-}
-
 // A seeded subset of n samples, kept in their original order.
 std::vector<SampleRef> subset(const std::vector<SampleRef>& all, size_t n, Rng& rng) {
   if (n >= all.size()) return all;

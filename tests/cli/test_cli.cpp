@@ -164,13 +164,33 @@ TEST(CliBench, WorldJsonHasTheThreeRates) {
   nlohmann::json j;
   ASSERT_NO_THROW(j = nlohmann::json::parse(lines.front())) << lines.front();
   ASSERT_TRUE(j.is_object()) << lines.front();
-  for (const char* key : {"sumo_steps_per_s", "full_steps_per_s", "ratio"}) {
+  for (const char* key : {"sumo_steps_per_s", "full_steps_per_s", "ratio", "ratio_min",
+                          "ratio_q25", "ratio_q75", "ratio_max", "slices"}) {
     ASSERT_TRUE(j.contains(key)) << key << " missing: " << lines.front();
     ASSERT_TRUE(j[key].is_number()) << key << ": " << lines.front();
     EXPECT_GT(j[key].get<double>(), 0.0) << key;
   }
-  const double sumo = j["sumo_steps_per_s"], full = j["full_steps_per_s"], ratio = j["ratio"];
-  EXPECT_NEAR(ratio, full / sumo, 1e-9 * std::max(1.0, ratio));
+  // The ratio is the median of the per-slice ratios (6 slices by default): inside their range
+  // and quartiles.
+  EXPECT_EQ(j["slices"].get<int>(), 6);
+  const double ratio = j["ratio"];
+  EXPECT_LE(j["ratio_min"].get<double>(), j["ratio_q25"].get<double>());
+  EXPECT_LE(j["ratio_q25"].get<double>(), ratio);
+  EXPECT_LE(ratio, j["ratio_q75"].get<double>());
+  EXPECT_LE(j["ratio_q75"].get<double>(), j["ratio_max"].get<double>());
+}
+
+TEST(CliBench, WorldSlicesAreAnOption) {
+  TempDir dir("cdtest-cli");
+  const std::string config = test::write_test_config(dir, "empty");
+  CommandResult r = test::run_cli(
+      {"bench", "world", "--config", config, "--steps", "40", "--slices", "2", "--json"});
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  const nlohmann::json j = nlohmann::json::parse(test::split_lines(r.out).front());
+  EXPECT_EQ(j["slices"].get<int>(), 2);
+  // With two slices the median is the mean of the two ratios: between min and max.
+  EXPECT_NEAR(j["ratio"].get<double>(),
+              0.5 * (j["ratio_min"].get<double>() + j["ratio_max"].get<double>()), 1e-9);
 }
 
 }  // namespace
