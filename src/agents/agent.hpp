@@ -46,16 +46,14 @@ class Agent {
   virtual double last_target_speed() const { return std::nan(""); }
 };
 
-// Agents by name: expert, cs, and the learned methods (which need a checkpoint folder).
-// Throws ConfigError for an unknown name or a checkpoint of another method.
-std::unique_ptr<Agent> make_agent(const std::string& name, const std::string& checkpoint,
-                                  const Settings& settings);
+// "CxHxW".
+std::string frame_shape(int channels, int height, int width);
 
-// Names make_agent accepts, and whether each needs a checkpoint.
-struct AgentKind {
-  std::string name;
-  bool learned = false;
-};
-const std::vector<AgentKind>& agent_kinds();
+// What every learned agent checks of an observation first: frames of the shape it was trained
+// on (ConfigError naming both shapes and the fix) and `history` of them (Error).
+void check_observation(const std::string& agent, const Observation& obs, int channels, int height,
+                       int width, int history);
+
+// The agents by name are in methods/method.hpp (make_agent).
 
 }  // namespace cd

@@ -1,5 +1,6 @@
 #include "app/settings.hpp"
 
+#include <algorithm>
 #include <limits>
 #include <map>
 
@@ -212,7 +213,78 @@ struct Writer {
   void flag(const std::string& t, const char* k, const bool& x) { put(t, k, x); }
 };
 
+// Reads each field back from the nested JSON object settings_to_json wrote (a run record's
+// "settings"), with the ranges of a config file. A missing table or key keeps its default
+// (records written before a key existed); a wrong type or an out-of-range value is a DataError
+// naming the record and the key.
+class JsonReader {
+ public:
+  JsonReader(const nlohmann::json& root, const std::string& where) : root_(root), where_(where) {}
+
+  void number(const std::string& table, const char* key, double& x, double lo, double hi) {
+    if (const nlohmann::json* v = find(table, key)) {
+      if (!v->is_number()) bad(table, key, "is not a number");
+      x = v->get<double>();
+      if (!(x >= lo && x <= hi)) bad(table, key, "is out of range");
+    }
+  }
+  template <class I>
+  void integer(const std::string& table, const char* key, I& x, int64_t lo, int64_t hi) {
+    if (const nlohmann::json* v = find(table, key)) {
+      if (!v->is_number_integer()) bad(table, key, "is not an integer");
+      const int64_t i = v->get<int64_t>();
+      if (i < lo || i > hi) bad(table, key, "is out of range");
+      x = static_cast<I>(i);
+    }
+  }
+  void text(const std::string& table, const char* key, std::string& x,
+            const std::vector<std::string>& allowed) {
+    if (const nlohmann::json* v = find(table, key)) {
+      if (!v->is_string()) bad(table, key, "is not a string");
+      x = v->get<std::string>();
+      if (!allowed.empty() && std::find(allowed.begin(), allowed.end(), x) == allowed.end())
+        bad(table, key, "has an unknown value '" + x + "'");
+    }
+  }
+  void flag(const std::string& table, const char* key, bool& x) {
+    if (const nlohmann::json* v = find(table, key)) {
+      if (!v->is_boolean()) bad(table, key, "is not a boolean");
+      x = v->get<bool>();
+    }
+  }
+
+ private:
+  const nlohmann::json* find(const std::string& table, const char* key) const {
+    const nlohmann::json* node = &root_;
+    size_t start = 0;
+    while (start <= table.size()) {
+      size_t dot = table.find('.', start);
+      if (dot == std::string::npos) dot = table.size();
+      const std::string part = table.substr(start, dot - start);
+      if (!node->is_object() || !node->contains(part)) return nullptr;
+      node = &(*node)[part];
+      start = dot + 1;
+    }
+    if (!node->is_object() || !node->contains(key)) return nullptr;
+    return &(*node)[key];
+  }
+  [[noreturn]] void bad(const std::string& table, const char* key, const std::string& why) const {
+    throw DataError(where_ + ": setting " + table + "." + key + " " + why);
+  }
+  const nlohmann::json& root_;
+  const std::string& where_;
+};
+
 }  // namespace
+
+Settings settings_from_json(const nlohmann::json& j, const std::string& where) {
+  if (!j.is_object()) throw DataError(where + ": the settings are not a JSON object");
+  Settings st;
+  st.source = where;
+  JsonReader reader(j, where);
+  visit_settings(st, reader);
+  return st;
+}
 
 Settings load_settings(const std::string& path) {
   Settings st;

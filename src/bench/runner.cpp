@@ -18,6 +18,7 @@
 #include "core/frame_buffer.hpp"
 #include "core/progress.hpp"
 #include "core/worker_pool.hpp"
+#include "methods/method.hpp"
 #include "world/town.hpp"
 
 namespace fs = std::filesystem;

@@ -11,6 +11,7 @@
 #include "bench/runner.hpp"
 #include "bench/suite.hpp"
 #include "collect/expert_episode.hpp"
+#include "methods/method.hpp"
 #include "world/world.hpp"
 
 namespace cd::cli {

@@ -6,6 +6,7 @@
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "methods/method.hpp"
 
 namespace cd::cli {
 
@@ -25,8 +26,8 @@ void list_suites() {
                 s.traffic.c_str(), s.tasks.size(), s.trials, s.description.c_str());
   }
   std::printf("agents:");
-  for (const AgentKind& k : agent_kinds())
-    std::printf(" %s%s", k.name.c_str(), k.learned ? " (--checkpoint)" : "");
+  for (const MethodSpec& m : methods())
+    std::printf(" %s%s", m.name, m.train ? " (--checkpoint)" : "");
   std::printf("\n");
 }
 
@@ -36,7 +37,9 @@ void add_eval(CLI::App& app) {
   auto a = std::make_shared<EvalArgs>();
   CLI::App* sub = app.add_subcommand("eval", "evaluate an agent closed-loop on a benchmark suite");
   sub->add_option("--config,-c", a->config, "TOML config (default: built-in quickstart)");
-  sub->add_option("--agent", a->agent, "expert | cs | bc-so | bc-oh | dim | rip | cim | cim-mlp | cim-entangled");
+  std::string agents;
+  for (const MethodSpec& m : methods()) agents += (agents.empty() ? "" : " | ") + std::string(m.name);
+  sub->add_option("--agent", a->agent, agents);
   sub->add_option("--checkpoint", a->checkpoint, "training output folder of a learned agent");
   sub->add_option("--suite", a->suite, "built-in suite name or suite file (eval.suite)");
   sub->add_option("--workers,-j", a->workers, "worker processes (eval.workers)")

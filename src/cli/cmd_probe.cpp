@@ -4,7 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.hpp"
-#include "learn/probe.hpp"
+#include "diagnostics/probe.hpp"
 
 namespace cd::cli {
 

@@ -8,8 +8,8 @@
 #include "cli/common.hpp"
 #include "collect/collect.hpp"
 #include "core/progress.hpp"
-#include "learn/cim.hpp"
-#include "learn/trainer.hpp"
+#include "methods/method.hpp"
+#include "train/request.hpp"
 #include "world/town.hpp"
 
 namespace cd::cli {
@@ -56,11 +56,11 @@ void add_quickstart(CLI::App& app) {
     TrainRequest bc{"bc-oh", s.collect.out, train_root + "/bc-oh", false, "", ""};
     heading("2/4 training bc-oh (behaviour cloning from " + std::to_string(s.model.history) +
             " stacked frames) -> " + bc.out_dir);
-    print_train_summary(train_policy(s, bc));
+    print_train_summary(train_method(s, bc));
     TrainRequest cim{"cim", s.collect.out, train_root + "/cim", false, "", ""};
     heading("3/4 training cim: beta-VAE, Granger cause selection, causal speed predictor -> " +
             cim.out_dir);
-    print_train_summary(train_cim(s, cim));
+    print_train_summary(train_method(s, cim));
 
     heading("4/4 closed-loop evaluation on suite " + s.eval.suite);
     const std::string eval_root = s.eval.out;

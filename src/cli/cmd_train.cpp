@@ -5,11 +5,7 @@
 #include "cli/common.hpp"
 #include "core/error.hpp"
 #include "core/progress.hpp"
-#include "learn/checkpoint.hpp"
-#include "learn/cim.hpp"
-#include "learn/dim_trainer.hpp"
-#include "learn/methods.hpp"
-#include "learn/trainer.hpp"
+#include "methods/method.hpp"
 
 namespace cd::cli {
 
@@ -26,13 +22,16 @@ struct TrainArgs {
 
 void add_train(CLI::App& app) {
   auto args = std::make_shared<TrainArgs>();
+  std::string names, help;
+  for (const MethodSpec& m : methods()) {
+    if (!m.train) continue;
+    names += (names.empty() ? "" : " | ") + std::string(m.name);
+    help += "\n    " + std::string(m.name) + ": " + m.help;
+  }
   CLI::App* sub = app.add_subcommand(
-      "train", "train a policy (bc-so, bc-oh, dim, rip, cim, cim-mlp, cim-entangled) on recorded "
-               "expert episodes");
+      "train", "train a method (" + names + ") on recorded expert episodes");
   sub->add_option("--config,-c", args->config, "TOML config (default: built-in quickstart)");
-  sub->add_option("--method,-m", args->method,
-                  "bc-so | bc-oh | dim | rip | cim | cim-mlp | cim-entangled")
-      ->required();
+  sub->add_option("--method,-m", args->method, names + help)->required();
   sub->add_option("--data,-d", args->data, "data folder of `causaldrive collect` (collect.out)");
   sub->add_option("--out,-o", args->out,
                   "checkpoint folder (train.out); a rerun resumes from its last finished epoch");
@@ -66,17 +65,7 @@ void add_train(CLI::App& app) {
     req.out_dir = s.train.out;
     req.init = args->init;
     req.vae_from = args->vae;
-    check_train_method(req.method);
-    const bool cim = req.method.rfind("cim", 0) == 0;
-    if (!cim && (!req.init.empty() || !req.vae_from.empty()))
-      throw ConfigError("--init and --vae apply to the cim family only (cim, cim-mlp, "
-                        "cim-entangled), not to '" + req.method + "'");
-    if (cim)
-      print_train_summary(train_cim(s, req));
-    else if (req.method == "dim" || req.method == "rip")
-      print_train_summary(train_dim(s, req));
-    else
-      print_train_summary(train_policy(s, req));
+    print_train_summary(train_method(s, req));
   });
 }
 

@@ -3,7 +3,7 @@
 #include <cstdio>
 
 #include "core/progress.hpp"
-#include "learn/checkpoint.hpp"
+#include "runs/checkpoint.hpp"
 
 namespace cd::cli {
 

@@ -2,7 +2,7 @@
 #include <string>
 
 #include "app/settings.hpp"
-#include "learn/trainer.hpp"
+#include "train/request.hpp"
 
 namespace cd::cli {
 

@@ -4,10 +4,20 @@
 // ego's vehicle model turns it into throttle if positive, brake otherwise (seed 000, eq. 2).
 #include <algorithm>
 
-#include "app/settings.hpp"
 #include "world/ego_model.hpp"
 
 namespace cd {
+
+// Speed controller of every agent with a target-speed output (control/pid.hpp).
+struct ControlSettings {
+  double kp = 4.0;              // 1/s: m/s^2 asked per m/s of speed error
+  double ki = 0.5;              // 1/s^2
+  double kd = 0.0;              // dimensionless
+  double integral_limit = 2.0;  // m, anti-windup bound of the integrated error
+  double stop_speed = 0.1;      // m/s: a target and a speed both below it mean "hold still"
+  double hold_brake = 0.3;      // brake held while standing
+};
+
 
 class SpeedPid {
  public:

@@ -55,4 +55,9 @@ void Progress::print(bool final_line, const std::string& note) {
   std::fflush(stderr);
 }
 
+void log_line(const std::string& line) {
+  std::fprintf(stderr, "%s%s\n", isatty(STDERR_FILENO) ? "\r\033[K" : "", line.c_str());
+  std::fflush(stderr);
+}
+
 }  // namespace cd

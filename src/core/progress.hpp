@@ -22,4 +22,7 @@ class Progress {
 
 std::string format_duration(double seconds);  // "1:05:03" or "4:07"
 
+// One line on stderr, clearing a progress line being redrawn on a terminal first.
+void log_line(const std::string& line);
+
 }  // namespace cd

@@ -21,7 +21,7 @@
 
 #include <torch/torch.h>
 
-#include "app/settings.hpp"
+#include "nn/model_settings.hpp"
 #include "nn/policy_net.hpp"
 
 namespace cd {

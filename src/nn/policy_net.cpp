@@ -9,6 +9,18 @@
 
 namespace cd {
 
+PolicyNetOptions policy_net_options(const ModelSettings& m, int in_channels, int height, int width) {
+  PolicyNetOptions o;
+  o.in_channels = in_channels;
+  o.height = height;
+  o.width = width;
+  o.backbone = m.backbone;
+  o.action_head = m.action_head;
+  o.features = m.features;
+  o.dropout = m.dropout;
+  return o;
+}
+
 namespace nn = torch::nn;
 
 namespace {

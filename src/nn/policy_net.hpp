@@ -18,6 +18,8 @@
 
 #include <torch/torch.h>
 
+#include "nn/model_settings.hpp"
+
 namespace cd {
 
 struct PolicyNetOptions {
@@ -28,6 +30,10 @@ struct PolicyNetOptions {
   int features = 256;
   double dropout = 0.2;
 };
+
+// The network [model] describes, for inputs of in_channels x height x width (one mapping for
+// the trainer and the closed-loop runner).
+PolicyNetOptions policy_net_options(const ModelSettings& m, int in_channels, int height, int width);
 
 // Width of the action output of a head name: 2 (throttle, brake) or 1 (target speed).
 int action_dim_of(const std::string& action_head);

@@ -2,7 +2,7 @@
 // Longitudinal model of the ego: throttle and brake in [0,1] -> acceleration with limits.
 #include <algorithm>
 
-#include "app/settings.hpp"
+#include "world/world_settings.hpp"
 
 namespace cd {
 

@@ -13,6 +13,7 @@
 
 #include "agents/agent.hpp"
 #include "bench/runner.hpp"
+#include "methods/method.hpp"
 #include "bench/suite.hpp"
 #include "core/error.hpp"
 #include "../support/test_support.hpp"

@@ -5,8 +5,8 @@
 
 #include "../support/test_support.hpp"
 #include "core/error.hpp"
-#include "learn/checkpoint.hpp"
-#include "learn/methods.hpp"
+#include "runs/checkpoint.hpp"
+#include "methods/method.hpp"
 
 namespace cd {
 namespace {
@@ -88,7 +88,7 @@ TEST(Checkpoint, PendingFilesOfTheCommittedEpochRollForward) {
 }
 
 TEST(Methods, NamesAndErrors) {
-  for (const auto& m : available_train_methods()) EXPECT_NO_THROW(check_train_method(m));
+  for (const auto& m : trainable_methods()) EXPECT_NO_THROW(check_train_method(m));
   try {
     check_train_method("fca");
     FAIL();
@@ -97,7 +97,7 @@ TEST(Methods, NamesAndErrors) {
               "method 'fca' is not available in this version (available: bc-so, bc-oh, dim, "
               "rip, cim, cim-mlp, cim-entangled)");
   }
-  for (const auto& m : planned_train_methods()) EXPECT_THROW(check_train_method(m), ConfigError);
+  for (const auto& m : planned_methods()) EXPECT_THROW(check_train_method(m), ConfigError);
   EXPECT_THROW(check_train_method("expert"), ConfigError);
   try {
     check_train_method("bcoh");

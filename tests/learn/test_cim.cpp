@@ -11,7 +11,10 @@
 #include "core/error.hpp"
 #include "core/png.hpp"
 #include "core/rng.hpp"
-#include "learn/cim_data.hpp"
+#include "causal/cause_selection.hpp"
+#include "datasets/ground_truth.hpp"
+#include "runs/cim_run.hpp"
+#include "sense/grey_view.hpp"
 #include "../support/test_support.hpp"
 
 namespace cd {
@@ -150,9 +153,9 @@ TEST(CimSelection, NothingSignificantFallsBackToTheSmallestP) {
   EXPECT_THROW(select_causes(y, latents, settings("holm"), false), ConfigError);
 }
 
-TEST(CimView, OrsChannelsAndAveragesAreas) {
+TEST(GreyView, OrsChannelsAndAveragesAreas) {
   const std::vector<std::string> names = {"drivable", "markings", "route", "vehicles", "pedestrians"};
-  CimView v = resolve_view("vehicles+pedestrians", names, 128, 128);
+  GreyView v = resolve_view("vehicles+pedestrians", names, 128, 128);
   EXPECT_EQ(v.channels, (std::vector<int>{3, 4}));
   EXPECT_EQ(v.mask, (1 << 3) | (1 << 4));
   std::vector<uint8_t> packed(128 * 128, 0);
@@ -173,7 +176,7 @@ TEST(CimView, OrsChannelsAndAveragesAreas) {
   view_from_planes(v, planes.data(), out2.data());
   EXPECT_EQ(out, out2);
   // 64x64 is taken as it is.
-  CimView same = resolve_view("vehicles", names, 64, 64);
+  GreyView same = resolve_view("vehicles", names, 64, 64);
   std::vector<uint8_t> p64(64 * 64, 0);
   p64[65] = 1 << 3;
   view_from_packed(same, p64.data(), out.data());

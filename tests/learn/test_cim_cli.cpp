@@ -10,7 +10,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "agents/learned_agents.hpp"
+#include "methods/method.hpp"
 #include "core/error.hpp"
 #include "learn_data.hpp"
 
@@ -200,9 +200,9 @@ TEST(CimCli, PipelineWritesEveryStageAndGrangerReproducesTheTests) {
 
   // The agent loads the run; another method's name is refused.
   Settings s;
-  EXPECT_NO_THROW(load_cim_agent("cim", f.run, s));
-  EXPECT_THROW(load_cim_agent("cim-mlp", f.run, s), ConfigError);
-  EXPECT_THROW(load_cim_agent("cim", f.dir / "nowhere", s), ConfigError);
+  EXPECT_NO_THROW(make_agent("cim", f.run, s));
+  EXPECT_THROW(make_agent("cim-mlp", f.run, s), ConfigError);
+  EXPECT_THROW(make_agent("cim", f.dir / "nowhere", s), ConfigError);
 }
 
 TEST(CimCli, FewShotReusesCausesAndTrainsOnMaxSamples) {
@@ -247,7 +247,7 @@ TEST(CimCli, VaeReuseAndFolderChecksGiveOneLineErrors) {
   json causes = read_json(mlp + "/causes.json");
   EXPECT_EQ(causes["selected"].size(), 8u);  // all latents
   EXPECT_EQ(read_json(mlp + "/run.json")["figures"]["predictor"]["variables"], 8);
-  EXPECT_NO_THROW(load_cim_agent("cim-mlp", mlp, Settings{}));
+  EXPECT_NO_THROW(make_agent("cim-mlp", mlp, Settings{}));
 
   expect_one_line_error(test::run_cli(train_args(f.config, "cim-entangled", f.data,
                                                  f.dir / "ent", {"--vae", f.run})),

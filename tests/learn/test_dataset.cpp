@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "core/error.hpp"
-#include "learn/dataset.hpp"
-#include "learn/methods.hpp"
+#include "datasets/dataset.hpp"
+#include "methods/method.hpp"
 #include "learn_data.hpp"
 
 namespace cd {

@@ -9,10 +9,12 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
-#include "learn/dim_run.hpp"
-#include "learn/dim_trainer.hpp"
-#include "learn/episode_set.hpp"
-#include "learn/policy_runner.hpp"
+#include "datasets/trajectory.hpp"
+#include "inference/dim_planner.hpp"
+#include "runs/dim_run.hpp"
+#include "methods/method.hpp"
+#include "datasets/episode_set.hpp"
+#include "inference/policy_runner.hpp"
 #include "learn_data.hpp"
 #include "nn/dim_net.hpp"
 
@@ -72,7 +74,7 @@ TrainSummary train(const Settings& s, const std::string& method, const std::stri
   r.data_dir = data;
   r.out_dir = out;
   r.quiet = true;
-  return train_dim(s, r);
+  return train_method(s, r);
 }
 
 // The members of a finished run folder, as the planner builds them.

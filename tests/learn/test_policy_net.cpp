@@ -5,12 +5,12 @@
 #include <new>
 
 #include "agents/agent.hpp"
-#include "agents/policy_agent.hpp"
+#include "methods/method.hpp"
 #include "core/error.hpp"
-#include "learn/checkpoint.hpp"
-#include "learn/episode_set.hpp"
-#include "learn/policy_runner.hpp"
-#include "learn/trainer.hpp"
+#include "runs/checkpoint.hpp"
+#include "datasets/episode_set.hpp"
+#include "inference/policy_runner.hpp"
+#include "train/request.hpp"
 #include "learn_data.hpp"
 #include "nn/policy_net.hpp"
 #include "world/world.hpp"
@@ -137,7 +137,7 @@ std::string train_tiny(const TempDir& dir, const std::string& method, const std:
   req.data_dir = dir / "data";
   req.out_dir = dir / ("ck-" + method + "-" + head);
   req.quiet = true;
-  TrainSummary sum = train_policy(s, req);
+  TrainSummary sum = train_method(s, req);
   EXPECT_EQ(sum.epochs_done, 1);
   EXPECT_EQ(sum.best_epoch, 1);
   EXPECT_EQ(sum.val_episodes, 1);
@@ -170,7 +170,7 @@ TEST(PolicyAgent, LoadsACheckpointAndDrives) {
   TempDir dir("cd-learn");
   const std::string ck = train_tiny(dir, "bc-oh", "throttle_brake");
   Settings s;
-  std::unique_ptr<Agent> agent = load_policy_agent("bc-oh", ck, s);
+  std::unique_ptr<Agent> agent = make_agent("bc-oh", ck, s);
   EXPECT_EQ(agent->name(), "bc-oh");
   EXPECT_EQ(agent->history(), 3);
   EXPECT_EQ(agent->history_stride(), 2);
@@ -200,16 +200,16 @@ TEST(PolicyAgent, LoadsACheckpointAndDrives) {
   EXPECT_FLOAT_EQ(static_cast<float>(c.throttle), static_cast<float>(step.throttle));
 
   // The method must match, and observations must have the checkpoint's shape.
-  EXPECT_THROW(load_policy_agent("bc-so", ck, s), ConfigError);
+  EXPECT_THROW(make_agent("bc-so", ck, s), ConfigError);
   obs.height = 64;
   EXPECT_THROW(agent->act(obs, no_world()), ConfigError);
-  EXPECT_THROW(load_policy_agent("bc-oh", dir / "nothing-here", s), DataError);
+  EXPECT_THROW(make_agent("bc-oh", dir / "nothing-here", s), DataError);
 }
 
 TEST(PolicyAgent, TargetSpeedHeadGoesThroughThePid) {
   TempDir dir("cd-learn");
   const std::string ck = train_tiny(dir, "bc-so", "target_speed");
-  std::unique_ptr<Agent> agent = load_policy_agent("bc-so", ck, Settings{});
+  std::unique_ptr<Agent> agent = make_agent("bc-so", ck, Settings{});
   EXPECT_EQ(agent->history(), 1);
   EpisodeSet set = load_episode_set(dir / "data");
   std::vector<std::vector<uint8_t>> buffers;

@@ -11,7 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "learn/probe.hpp"
+#include "diagnostics/probe.hpp"
 #include "learn_data.hpp"
 
 namespace cd {

@@ -1,0 +1,63 @@
+#pragma once
+// Training samples of the behaviour-cloning methods over an EpisodeSet.
+//
+// A sample is (episode e, step t) with t >= (K-1)*stride, so its K frames t-(K-1)*stride, ...,
+// t-stride, t are all real frames of the episode (never one frame repeated: a static history
+// is itself a copycat trigger). Labels: the throttle_brake head learns action[t]; the
+// target_speed head learns speed[t+1], the speed the expert reached one step later (so the
+// last frame of an episode is no sample for it); the auxiliary head learns speed[t].
+// Validation holds out whole episodes, chosen from the seed.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "datasets/episode_set.hpp"
+#include "datasets/split.hpp"
+
+namespace cd {
+
+struct DatasetOptions {
+  int history = 1;                             // K
+  int stride = 1;                              // steps between stacked frames
+  std::string action_head = "throttle_brake";  // throttle_brake | target_speed
+  bool speed_input = false;                    // false: the speed input is zero
+  double val_fraction = 0.1;                   // of the episodes
+  uint64_t seed = 0;                           // validation split and max_samples subset
+  long max_samples = 0;                        // > 0: keep this many samples (both splits)
+};
+
+// One sample's tensors, as flat arrays the trainer copies into a batch.
+struct SampleView {
+  float* image = nullptr;         // K*C*H*W planes of 0/1, oldest frame first
+  float* speed_input = nullptr;   // 1
+  int64_t* command = nullptr;     // 1
+  float* action = nullptr;        // action_dim: (throttle, brake) or (next speed)
+  float* speed_label = nullptr;   // 1: speed[t]
+};
+
+class Dataset {
+ public:
+  Dataset(EpisodeSet episodes, const DatasetOptions& options);  // throws DataError
+
+  const EpisodeSet& episodes() const { return set_; }
+  const DatasetOptions& options() const { return opt_; }
+  int input_channels() const { return opt_.history * set_.channels; }
+  int action_dim() const { return opt_.action_head == "throttle_brake" ? 2 : 1; }
+  size_t image_values() const { return static_cast<size_t>(opt_.history) * set_.frame_values(); }
+  int first_step() const { return (opt_.history - 1) * opt_.stride; }  // first valid t
+
+  const std::vector<SampleRef>& train() const { return train_; }
+  const std::vector<SampleRef>& val() const { return val_; }
+  const std::vector<int>& val_episodes() const { return val_episodes_; }  // indices, sorted
+  bool is_val_episode(int e) const;
+
+  void fill(const SampleRef& s, const SampleView& out) const;
+
+ private:
+  EpisodeSet set_;
+  DatasetOptions opt_;
+  std::vector<SampleRef> train_, val_;
+  std::vector<int> val_episodes_;
+};
+
+}  // namespace cd

@@ -1,0 +1,195 @@
+#include "diagnostics/probe.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "core/error.hpp"
+#include "datasets/episode_set.hpp"
+#include "inference/policy_runner.hpp"
+
+namespace cd {
+
+using nlohmann::json;
+
+namespace {
+
+struct Accumulator {
+  ProbeGroup g;
+  void add(double real, double moving, double still) {
+    ++g.count;
+    g.mean_real += real;
+    g.mean_moving += moving;
+    g.mean_static += still;
+    g.history_effect += std::abs(moving - still);
+    g.moving_minus_static += moving - still;
+  }
+  ProbeGroup mean() const {
+    ProbeGroup m = g;
+    if (m.count == 0) return m;
+    const double n = static_cast<double>(m.count);
+    m.mean_real /= n;
+    m.mean_moving /= n;
+    m.mean_static /= n;
+    m.history_effect /= n;
+    m.moving_minus_static /= n;
+    return m;
+  }
+};
+
+json group_json(const ProbeGroup& g) {
+  auto value = [&](double v) { return g.count > 0 ? json(v) : json(nullptr); };
+  return {{"count", g.count},
+          {"mean_real", value(g.mean_real)},
+          {"mean_moving", value(g.mean_moving)},
+          {"mean_static", value(g.mean_static)},
+          {"history_effect", value(g.history_effect)},
+          {"moving_minus_static", value(g.moving_minus_static)}};
+}
+
+}  // namespace
+
+void shift_frame_up(const unsigned char* current, int channels, int height, int width, int shift,
+                    unsigned char* out) {
+  const size_t row = static_cast<size_t>(width);
+  shift = std::clamp(shift, 0, height);
+  for (int c = 0; c < channels; ++c) {
+    const unsigned char* src = current + static_cast<size_t>(c) * height * row;
+    unsigned char* dst = out + static_cast<size_t>(c) * height * row;
+    std::memcpy(dst, src + shift * row, (height - shift) * row);
+    std::memset(dst + (height - shift) * row, 0, shift * row);
+  }
+}
+
+ProbeReport run_probe(const ProbeOptions& o) {
+  set_torch_threads(1);
+  PolicyRunner policy(o.checkpoint);
+  const Checkpoint& ck = policy.checkpoint();
+  const int K = policy.history(), stride = policy.stride();
+  if (K < 2)
+    throw ConfigError("the copycat probe needs a history policy such as bc-oh; " + o.checkpoint +
+                      " holds '" + ck.method + "', which sees " + std::to_string(K) + " frame");
+  EpisodeSet set = load_episode_set(o.data);
+  const InputFormat& in = ck.input;
+  if (set.channels != in.channels || set.height != in.height || set.width != in.width)
+    throw DataError("data in " + o.data + " has " + std::to_string(set.channels) + "x" +
+                    std::to_string(set.height) + "x" + std::to_string(set.width) +
+                    " BEV frames, the checkpoint was trained on " + std::to_string(in.channels) +
+                    "x" + std::to_string(in.height) + "x" + std::to_string(in.width));
+
+  ProbeReport r;
+  r.checkpoint = o.checkpoint;
+  r.data = o.data;
+  r.method = ck.method;
+  r.output = policy.target_speed_head() ? "target_speed" : "throttle_minus_brake";
+  r.history = K;
+  r.stride = stride;
+  r.moving_speed = o.moving_speed;
+  r.stopped_below = o.stopped_below;
+  r.dt = set.dt;
+  r.metres_per_pixel = set.metres_per_pixel;
+  r.frames = set.total_frames();
+
+  struct Candidate {
+    int e, t;
+  };
+  std::vector<Candidate> stopped;
+  const int first = (K - 1) * stride;
+  for (int e = 0; e < static_cast<int>(set.episodes.size()); ++e) {
+    const PackedEpisode& ep = set.episodes[e];
+    if (ep.path_free.empty())
+      throw DataError("episode file " + o.data + "/" + ep.file +
+                      " has no causes/path_free (record the data with `causaldrive collect`)");
+    for (int t = first; t < ep.frames; ++t)
+      if (ep.speed[t] < o.stopped_below) stopped.push_back({e, t});
+  }
+  r.stopped_frames = static_cast<long>(stopped.size());
+  std::vector<Candidate> probed = stopped;
+  if (o.max_frames > 0 && static_cast<size_t>(o.max_frames) < stopped.size()) {
+    probed.clear();
+    for (long i = 0; i < o.max_frames; ++i)
+      probed.push_back(stopped[static_cast<size_t>(i) * stopped.size() / o.max_frames]);
+  }
+  r.probed_frames = static_cast<long>(probed.size());
+
+  const size_t fv = set.frame_values();
+  std::vector<uint8_t> real(fv * K), moving(fv * K);
+  std::vector<const uint8_t*> real_ptr(K), moving_ptr(K), static_ptr(K);
+  for (int k = 0; k < K; ++k) {
+    real_ptr[k] = real.data() + k * fv;
+    moving_ptr[k] = moving.data() + k * fv;
+  }
+  Accumulator free_acc, blocked_acc;
+  for (const Candidate& c : probed) {
+    const PackedEpisode& ep = set.episodes[c.e];
+    for (int k = 0; k < K; ++k)
+      set.planes255(c.e, c.t - (K - 1 - k) * stride, real.data() + k * fv);
+    const uint8_t* current = real.data() + (K - 1) * fv;
+    for (int k = 0; k < K; ++k) {
+      const int lag_steps = (K - 1 - k) * stride;
+      const int shift = static_cast<int>(
+          std::lround(o.moving_speed * lag_steps * set.dt / set.metres_per_pixel));
+      shift_frame_up(current, set.channels, set.height, set.width, shift, moving.data() + k * fv);
+      static_ptr[k] = current;
+    }
+    const double speed = ep.speed[c.t];
+    const int command = ep.command[c.t];
+    const double out_real = policy.run(real_ptr.data(), speed, command).scalar();
+    const double out_moving = policy.run(moving_ptr.data(), speed, command).scalar();
+    const double out_static = policy.run(static_ptr.data(), speed, command).scalar();
+    (ep.path_free[c.t] >= 0.5f ? free_acc : blocked_acc).add(out_real, out_moving, out_static);
+  }
+  r.path_free = free_acc.mean();
+  r.blocked = blocked_acc.mean();
+  return r;
+}
+
+json probe_report_json(const ProbeReport& r) {
+  return {{"checkpoint", r.checkpoint},
+          {"data", r.data},
+          {"method", r.method},
+          {"history", r.history},
+          {"history_stride", r.stride},
+          {"output", r.output},
+          {"moving_speed", r.moving_speed},
+          {"stopped_below", r.stopped_below},
+          {"frames", r.frames},
+          {"stopped_frames", r.stopped_frames},
+          {"probed_frames", r.probed_frames},
+          {"path_free", group_json(r.path_free)},
+          {"blocked", group_json(r.blocked)}};
+}
+
+std::string probe_report_table(const ProbeReport& r) {
+  char buf[512];
+  std::string s;
+  std::snprintf(buf, sizeof buf,
+                "copycat probe: %s (history %d, stride %d) on %s\n"
+                "output: %s; moving history at %.1f m/s\n"
+                "stopped frames (speed < %.2f m/s, full history): %ld of %ld, probed %ld\n\n",
+                r.method.c_str(), r.history, r.stride, r.data.c_str(),
+                r.output == "target_speed" ? "target speed (m/s)" : "throttle - brake",
+                r.moving_speed, r.stopped_below, r.stopped_frames, r.frames, r.probed_frames);
+  s += buf;
+  std::snprintf(buf, sizeof buf, "%-10s %7s %9s %9s %9s %16s\n", "path", "frames", "real",
+                "moving", "static", "|moving-static|");
+  s += buf;
+  auto row = [&](const char* name, const ProbeGroup& g) {
+    if (g.count == 0)
+      std::snprintf(buf, sizeof buf, "%-10s %7ld %9s %9s %9s %16s\n", name, g.count, "-", "-",
+                    "-", "-");
+    else
+      std::snprintf(buf, sizeof buf, "%-10s %7ld %9.3f %9.3f %9.3f %16.3f\n", name, g.count,
+                    g.mean_real, g.mean_moving, g.mean_static, g.history_effect);
+    s += buf;
+  };
+  row("free", r.path_free);
+  row("blocked", r.blocked);
+  return s;
+}
+
+}  // namespace cd

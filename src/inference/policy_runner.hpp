@@ -1,0 +1,48 @@
+#pragma once
+// A trained bc-so / bc-oh network loaded from its checkpoint folder, run on one observation at
+// a time on the CPU (closed loop, the copycat probe). Torch stays inside the .cpp.
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <string>
+
+#include "runs/checkpoint.hpp"
+
+namespace cd {
+
+struct PolicyStep {
+  double throttle = 0, brake = 0;  // throttle_brake head, in [0,1]
+  double target_speed = std::numeric_limits<double>::quiet_NaN();  // target_speed head, m/s
+  // The head's output as one number: throttle - brake, or the target speed.
+  double scalar() const { return target_speed == target_speed ? target_speed : throttle - brake; }
+};
+
+// torch's intra-op threads for this process (closed loop: 1, one worker process per core).
+void set_torch_threads(int threads);
+
+class PolicyRunner {
+ public:
+  // Reads dir/checkpoint.json and the weights file (best.pt by default), builds the network
+  // from the checkpoint's own model settings, eval mode. Throws DataError for a missing or
+  // damaged checkpoint, ConfigError when `expected_method` is given and differs.
+  explicit PolicyRunner(const std::string& dir, const std::string& expected_method = "",
+                        const std::string& weights_file = kBestFile);
+  ~PolicyRunner();
+  PolicyRunner(const PolicyRunner&) = delete;
+  PolicyRunner& operator=(const PolicyRunner&) = delete;
+
+  const Checkpoint& checkpoint() const;
+  int history() const;  // K frames per input
+  int stride() const;   // simulation steps between them
+  bool target_speed_head() const;
+
+  // frames: history() pointers to C*H*W bytes (0/255, C x H x W of the checkpoint's input),
+  // oldest first. The speed is zeroed unless the model was trained with a speed input.
+  PolicyStep run(const uint8_t* const* frames, double speed, int command);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace cd

@@ -1,0 +1,857 @@
+// The cim family of seed 000 (cim, cim-mlp, cim-entangled): beta-VAE perception -> Granger
+// cause selection -> causal speed predictor -> speed PID. The pipeline, stage by stage, into
+// one run folder (runs/cim_run.hpp):
+//
+//   run.json                 commit record: method, settings, data folder, input format, init /
+//                            vae_from, finished stages, figures of each stage
+//   vae.pt, vae_metrics.jsonl           stage "vae": the beta-VAE (or a copy of another run's)
+//   series.csv                          stage "series": episode, speed, z0..z{L-1} every
+//                                       cim.series_stride-th frame (what `causaldrive granger
+//                                       --input RUN` reads)
+//   causes.json                         stage "causes": Granger tests, selection, ground truth
+//   predictor.pt, predictor_metrics.jsonl  stage "predictor": best validation epoch
+//   traversal.png, granger.png          stage "pictures" (diagnostics/cim_pictures.hpp)
+//
+// Every file is written atomically before run.json names its stage as done, so a rerun skips
+// finished stages and redoes an interrupted one from its start. A few-shot run (--init RUN)
+// copies RUN's vae.pt and causes.json (no series, no new selection) and fine-tunes RUN's
+// predictor on train.max_samples samples of the new data.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <deque>
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <sstream>
+
+#include <ATen/Parallel.h>
+#include <nlohmann/json.hpp>
+
+#include "core/atomic_file.hpp"
+#include "core/error.hpp"
+#include "core/progress.hpp"
+#include "core/rng.hpp"
+#include "agents/agent.hpp"
+#include "causal/cause_selection.hpp"
+#include "control/pid.hpp"
+#include "datasets/episode_set.hpp"
+#include "datasets/ground_truth.hpp"
+#include "datasets/split.hpp"
+#include "diagnostics/cim_pictures.hpp"
+#include "inference/policy_runner.hpp"
+#include "methods/method.hpp"
+#include "nn/beta_vae.hpp"
+#include "nn/policy_net.hpp"
+#include "nn/speed_predictor.hpp"
+#include "runs/cim_run.hpp"
+#include "runs/record.hpp"
+#include "sense/grey_view.hpp"
+#include "train/loop.hpp"
+
+namespace cd {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+constexpr uint64_t kVaeSubsetStream = 0xc1a0001;
+constexpr uint64_t kVaeOrderStream = 0xc1a0002;
+constexpr uint64_t kVaeNoiseStream = 0xc1a0003;
+constexpr uint64_t kPredSubsetStream = 0xc1a0004;
+constexpr uint64_t kPredOrderStream = 0xc1a0005;
+
+double seconds_since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+void say(bool quiet, const std::string& line, FILE* to = stdout) {
+  if (quiet && to == stdout) return;
+  std::fprintf(to, "%s\n", line.c_str());
+  std::fflush(to);
+}
+
+std::string fmt(const char* f, double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, f, v);
+  return b;
+}
+
+// Settings a rerun into the same folder must share: everything the stages read ([vae], [cim],
+// [bev] and these [train] keys).
+bool may_differ(const std::string& table, const std::string& key) {
+  return table == "train" &&
+         !(key == "seed" || key == "val_fraction" || key == "max_samples" || key == "loss");
+}
+
+void check_same_vae(const CimRunInfo& src, const VaeSettings& want, const std::string& method,
+                    const std::string& role) {
+  auto bad = [&](const std::string& what) {
+    throw ConfigError(role + " " + src.dir + ": its VAE has " + what + " (method '" + method +
+                      "' trains with these settings): use a run with a matching VAE");
+  };
+  if (src.vae.beta != want.beta)
+    bad("vae.beta " + fmt("%g", src.vae.beta) + ", this run needs " + fmt("%g", want.beta));
+  if (src.vae.latents != want.latents)
+    bad("vae.latents " + std::to_string(src.vae.latents) + ", this run needs " +
+        std::to_string(want.latents));
+  if (src.vae.view != want.view) bad("vae.view '" + src.vae.view + "', this run needs '" + want.view + "'");
+}
+
+void check_same_input(const CimRunInfo& src, const EpisodeSet& eps, const std::string& role) {
+  if (src.height != eps.height || src.width != eps.width || src.channel_names != eps.channel_names)
+    throw ConfigError(role + " " + src.dir + " was trained on " + std::to_string(src.channels) +
+                      "x" + std::to_string(src.height) + "x" + std::to_string(src.width) +
+                      " BEV frames (other channels or size than " + eps.dir + ")");
+}
+
+// mu of every frame, frame-major: row (offset[e] + t) holds latents values.
+struct Encoded {
+  int latents = 0;
+  std::vector<long> offset;  // per episode
+  std::vector<float> mu;
+  const float* at(int e, int t) const {
+    return mu.data() + (offset[e] + t) * static_cast<long>(latents);
+  }
+};
+
+// The grey views of frames[rows[i]] (frames[i] when rows is null), i < n, into out.
+void fill_views(const EpisodeSet& eps, const GreyView& view, const std::pair<int, int>* frames,
+                const uint32_t* rows, int64_t n, float* out) {
+  const int plane = kVaeSize * kVaeSize;
+  at::parallel_for(0, n, 16, [&](int64_t lo, int64_t hi) {
+    for (int64_t i = lo; i < hi; ++i) {
+      const auto [e, t] = frames[rows ? rows[i] : i];
+      view_from_packed(view, eps.episodes[e].packed.data() + static_cast<size_t>(t) * eps.frame_pixels(),
+                       out + i * plane);
+    }
+  });
+}
+
+Encoded encode_all(BetaVae& vae, const EpisodeSet& eps, const GreyView& view,
+                   const torch::Device& device, bool quiet) {
+  torch::NoGradGuard no_grad;
+  vae->eval();
+  Encoded enc;
+  enc.latents = vae->latents();
+  std::vector<std::pair<int, int>> frames;
+  for (int e = 0; e < static_cast<int>(eps.episodes.size()); ++e) {
+    enc.offset.push_back(static_cast<long>(frames.size()));
+    for (int t = 0; t < eps.episodes[e].frames; ++t) frames.emplace_back(e, t);
+  }
+  enc.mu.resize(frames.size() * enc.latents);
+  constexpr int B = 512;
+  torch::Tensor batch = torch::empty({B, 1, kVaeSize, kVaeSize});
+  std::optional<Progress> progress;
+  if (!quiet) progress.emplace("encode frames", static_cast<long>(frames.size()));
+  for (size_t begin = 0; begin < frames.size(); begin += B) {
+    const int64_t n = std::min<int64_t>(B, static_cast<int64_t>(frames.size() - begin));
+    fill_views(eps, view, frames.data() + begin, nullptr, n, batch.data_ptr<float>());
+    torch::Tensor mu = vae->encode(batch.narrow(0, 0, n).to(device)).first.to(torch::kCPU).contiguous();
+    std::copy(mu.data_ptr<float>(), mu.data_ptr<float>() + n * enc.latents,
+              enc.mu.begin() + static_cast<long>(begin) * enc.latents);
+    if (progress) progress->advance(n);
+  }
+  if (progress) progress->finish();
+  return enc;
+}
+
+// ---- stage vae ----------------------------------------------------------------------------
+
+// The VAE's loss over a set of frames (no validation: it is judged by its traversals and by
+// the causes it yields).
+class VaeObjective : public Objective {
+ public:
+  VaeObjective(const EpisodeSet& eps, const GreyView& view,
+               const std::vector<std::pair<int, int>>& frames, BetaVae& vae,
+               const torch::Device& device, const VaeSettings& v)
+      : eps_(eps), view_(view), frames_(frames), vae_(vae), device_(device), beta_(v.beta),
+        batch_(torch::empty({v.batch_size, 1, kVaeSize, kVaeSize})) {}
+
+  void set_training(bool on) override { on ? vae_->train() : vae_->eval(); }
+
+  BatchLoss loss(bool, const uint32_t* rows, int64_t n) override {
+    fill_views(eps_, view_, frames_.data(), rows, n, batch_.data_ptr<float>());
+    torch::Tensor x = batch_.narrow(0, 0, n).to(device_);
+    VaeOutput o = vae_->forward(x, true);
+    VaeLoss l = vae_loss(o.logits, x, o.mu, o.logvar, beta_);
+    return {l.loss, {l.recon, l.kl}};
+  }
+
+ private:
+  const EpisodeSet& eps_;
+  const GreyView& view_;
+  const std::vector<std::pair<int, int>>& frames_;
+  BetaVae& vae_;
+  torch::Device device_;
+  double beta_;
+  torch::Tensor batch_;
+};
+
+json train_vae(const Settings& s, const EpisodeSet& eps, const GreyView& view,
+               const torch::Device& device, const std::string& out, bool quiet) {
+  const auto start = Clock::now();
+  std::vector<std::pair<int, int>> frames;
+  for (int e = 0; e < static_cast<int>(eps.episodes.size()); ++e)
+    for (int t = 0; t < eps.episodes[e].frames; ++t) frames.emplace_back(e, t);
+  const long total = static_cast<long>(frames.size());
+  if (total == 0) throw DataError("data folder '" + eps.dir + "' holds no frame");
+  if (s.vae.max_frames > 0 && s.vae.max_frames < total) {
+    // A seeded subset, back in data order (locality while filling batches).
+    Rng rng(derive_seed(s.train.seed, kVaeSubsetStream));
+    frames = subset_in_order(frames, static_cast<size_t>(s.vae.max_frames), rng, SubsetDraw::Partial);
+  }
+  const size_t n_frames = frames.size();
+
+  torch::manual_seed(s.train.seed);
+  BetaVae vae(s.vae.latents);
+  vae->to(device);
+  torch::optim::Adam opt(vae->parameters(), torch::optim::AdamOptions(s.vae.lr));
+  std::optional<Progress> progress;
+  if (!quiet) progress.emplace("train vae", static_cast<long>(n_frames) * s.vae.epochs);
+  LoopPlan plan;
+  plan.last_epoch = s.vae.epochs;
+  plan.batch_size = s.vae.batch_size;
+  plan.train_size = n_frames;
+  plan.shuffle_seed = s.train.seed ^ kVaeOrderStream;
+  plan.torch_seed = s.train.seed ^ kVaeNoiseStream;  // the reparameterisation noise
+  plan.progress = progress ? &*progress : nullptr;
+  const int epochs = s.vae.epochs;
+  plan.note = [epochs](int epoch, double v) { return epoch_note(epoch, epochs, "loss", v, 2); };
+  LoopState state;
+  state.lr = s.vae.lr;
+  std::string metrics;
+  json last;
+  VaeObjective objective(eps, view, frames, vae, device, s.vae);
+  const LoopTotals totals = train_epochs(objective, opt, plan, state, [&](const EpochResult& r) {
+    last = {{"epoch", r.epoch},
+            {"recon", r.train_parts[0]},
+            {"kl", r.train_parts[1]},
+            {"loss", r.train_loss},
+            {"seconds", r.train_seconds},
+            {"images_per_s", r.samples_per_s}};
+    metrics += last.dump() + "\n";
+  });
+  if (progress) progress->finish();
+  write_file_atomic(out + "/" + kCimVaeFile, save_module_bytes(*vae));
+  write_file_atomic(out + "/" + kCimVaeMetrics, metrics);
+  json fig = last;
+  fig["frames"] = static_cast<long>(n_frames);
+  fig["epochs"] = s.vae.epochs;
+  fig["beta"] = s.vae.beta;
+  fig["seconds"] = seconds_since(start);
+  fig["train_seconds"] = totals.seconds;
+  say(quiet, "  vae: " + std::to_string(s.vae.epochs) + " epochs on " + std::to_string(n_frames) +
+                 " frames, recon " + fmt("%.2f", last["recon"].get<double>()) + " kl " +
+                 fmt("%.2f", last["kl"].get<double>()) + " (beta " + fmt("%g", s.vae.beta) +
+                 ") per image, " + fmt("%.0f", totals.samples_per_s()) + " images/s, " +
+                 format_duration(seconds_since(start)));
+  return fig;
+}
+
+// ---- stages series and causes ---------------------------------------------------------------
+
+struct SeriesRows {
+  std::vector<std::pair<int, int>> rows;  // (episode, t)
+  std::vector<std::vector<double>> speed;                  // per episode
+  std::vector<std::vector<std::vector<double>>> latents;   // [latent][episode][row]
+  std::string csv;                                         // series.csv
+};
+
+// The series as series.csv holds them, and the tests run on exactly the numbers a reader of
+// that file gets: each value is printed with %.9g (enough to tell floats apart) and parsed
+// back, so `causaldrive granger --input RUN` reproduces causes.json to the last bit.
+SeriesRows build_series(const EpisodeSet& eps, const Encoded& enc, int stride) {
+  SeriesRows s;
+  const int n = static_cast<int>(eps.episodes.size());
+  s.speed.resize(n);
+  s.latents.assign(enc.latents, std::vector<std::vector<double>>(n));
+  s.csv = "episode,speed";
+  for (int i = 0; i < enc.latents; ++i) s.csv += ",z" + std::to_string(i);
+  s.csv += "\n";
+  char buf[40];
+  auto cell = [&](float v) {
+    std::snprintf(buf, sizeof buf, "%.9g", static_cast<double>(v));
+    s.csv += ',';
+    s.csv += buf;
+    return std::strtod(buf, nullptr);
+  };
+  for (int e = 0; e < n; ++e)
+    for (int t = 0; t < eps.episodes[e].frames; t += stride) {
+      s.rows.emplace_back(e, t);
+      s.csv += std::to_string(e);
+      s.speed[e].push_back(cell(eps.episodes[e].speed[t]));
+      const float* mu = enc.at(e, t);
+      for (int i = 0; i < enc.latents; ++i) s.latents[i][e].push_back(cell(mu[i]));
+      s.csv += '\n';
+    }
+  return s;
+}
+
+json causes_json(const std::string& method, const CimSettings& cim, const CauseSelection& sel,
+                 const SeriesRows& s, const EpisodeSet& eps) {
+  json j;
+  j["target"] = "speed";
+  j["method"] = method;
+  j["lags"] = cim.lags;
+  j["alpha"] = cim.alpha;
+  j["correction"] = cim.correction;
+  j["max_causes"] = cim.max_causes;
+  j["series_stride"] = cim.series_stride;
+  j["rows"] = sel.rows;
+  j["series_rows"] = static_cast<long>(s.rows.size());
+  j["threshold_p"] = sel.threshold_p;
+  j["significant_count"] = sel.significant;
+  j["capped"] = sel.capped;
+  j["fallback"] = sel.fallback;
+  j["ranked"] = sel.ranked;
+  j["selected"] = sel.selected;
+  json lat = json::array();
+  for (const LatentTest& t : sel.tests)
+    lat.push_back({{"index", t.index},
+                   {"f_stat", json_number(t.test.f_stat)},
+                   {"p_value", t.test.p_value},
+                   {"p_adjusted", t.p_adjusted},
+                   {"df_num", t.test.df_num},
+                   {"df_den", t.test.df_den},
+                   {"significant", t.significant},
+                   {"selected", t.selected}});
+  j["latents"] = lat;
+
+  // What the picked latents track: Pearson r with the recorded causes on the series rows.
+  std::map<std::string, std::vector<double>> truth;
+  for (const auto& name : ground_truth_names())
+    for (const auto& [e, t] : s.rows) truth[name].push_back(ground_truth_value(eps.episodes[e], name, t));
+  auto latent_series = [&](int i) {
+    std::vector<double> v;
+    for (const auto& per_ep : s.latents[i]) v.insert(v.end(), per_ep.begin(), per_ep.end());
+    return v;
+  };
+  json gt;
+  gt["rows"] = static_cast<long>(s.rows.size());
+  gt["note"] = "Pearson r of each Granger-picked latent (ranked) with the recorded causes";
+  json per = json::array();
+  std::map<std::string, std::pair<int, double>> best;
+  for (int i = 0; i < static_cast<int>(s.latents.size()); ++i) {
+    const std::vector<double> z = latent_series(i);
+    const bool ranked = std::find(sel.ranked.begin(), sel.ranked.end(), i) != sel.ranked.end();
+    json r;
+    for (const auto& name : ground_truth_names()) {
+      const double c = pearson(z, truth[name]);
+      r[name] = json_number(c);
+      if (std::isfinite(c) && (!best.count(name) || std::fabs(c) > std::fabs(best[name].second)))
+        best[name] = {i, c};
+    }
+    if (ranked) per.push_back({{"index", i}, {"correlation", r}});
+  }
+  gt["latents"] = per;
+  json b = json::object();
+  for (const auto& [name, v] : best) b[name] = {{"index", v.first}, {"r", v.second}};
+  gt["best_latent_per_cause"] = b;
+  j["ground_truth"] = gt;
+  return j;
+}
+
+// ---- stage predictor -----------------------------------------------------------------------
+
+struct PredictorResult {
+  json figures;
+  TrainSummary summary;
+};
+
+// The speed predictor's loss: the selected latents' last cim.history means -> speed[t+1].
+class PredictorObjective : public Objective {
+ public:
+  PredictorObjective(const EpisodeSet& eps, const Encoded& enc, const std::vector<int>& selected,
+                     const std::vector<SampleRef>& train, const std::vector<SampleRef>& val,
+                     SpeedPredictor& net, const torch::Device& device, const Settings& s)
+      : eps_(eps), enc_(enc), selected_(selected), train_(train), val_(val), net_(net),
+        device_(device), loss_kind_(s.train.loss), H_(s.cim.history), hs_(s.cim.history_stride) {
+    const int V = static_cast<int>(selected.size());
+    x_ = torch::empty({s.cim.batch_size, V, H_});
+    y_ = torch::empty({s.cim.batch_size, 1});
+  }
+
+  void set_training(bool on) override { on ? net_->train() : net_->eval(); }
+
+  BatchLoss loss(bool training, const uint32_t* rows, int64_t n) override {
+    const std::vector<SampleRef>& list = training ? train_ : val_;
+    const int V = static_cast<int>(selected_.size());
+    float* x = x_.data_ptr<float>();
+    float* y = y_.data_ptr<float>();
+    for (int64_t i = 0; i < n; ++i) {
+      const SampleRef& p = list[rows[i]];
+      for (int k = 0; k < H_; ++k) {
+        const float* mu = enc_.at(p.episode, p.t - (H_ - 1 - k) * hs_);  // oldest first
+        for (int v = 0; v < V; ++v) x[(i * V + v) * H_ + k] = mu[selected_[v]];
+      }
+      y[i] = eps_.episodes[p.episode].speed[p.t + 1];
+    }
+    torch::Tensor pred = net_->forward(x_.narrow(0, 0, n).to(device_));
+    torch::Tensor target = y_.narrow(0, 0, n).to(device_);
+    return {loss_kind_ == "l2" ? torch::mse_loss(pred, target) : torch::l1_loss(pred, target), {}};
+  }
+
+ private:
+  const EpisodeSet& eps_;
+  const Encoded& enc_;
+  const std::vector<int>& selected_;
+  const std::vector<SampleRef>& train_;
+  const std::vector<SampleRef>& val_;
+  SpeedPredictor& net_;
+  torch::Device device_;
+  std::string loss_kind_;
+  int H_, hs_;
+  torch::Tensor x_, y_;
+};
+
+PredictorResult train_predictor(const Settings& s, const std::string& method, const EpisodeSet& eps,
+                                const Encoded& enc, const std::vector<int>& selected,
+                                const std::string& init_predictor, const torch::Device& device,
+                                const std::string& out, bool quiet) {
+  const auto start = Clock::now();
+  const int H = s.cim.history, hs = s.cim.history_stride;
+  const int n_eps = static_cast<int>(eps.episodes.size());
+  const std::vector<int> val_eps = choose_val_episodes(n_eps, s.train.val_fraction, s.train.seed);
+  std::vector<SampleRef> train, val;
+  for (int e = 0; e < n_eps; ++e) {
+    const bool is_val = std::binary_search(val_eps.begin(), val_eps.end(), e);
+    for (int t = (H - 1) * hs; t + 1 < eps.episodes[e].frames; ++t)
+      (is_val ? val : train).push_back({e, t});
+  }
+  if (train.empty())
+    throw DataError("data folder '" + eps.dir + "' gives no training sample for the speed "
+                    "predictor (episodes shorter than " + std::to_string((H - 1) * hs + 2) +
+                    " frames)");
+  // train.max_samples caps the training samples only (seeded subset, data order kept);
+  // validation always uses every sample of the held-out episodes.
+  if (s.train.max_samples > 0) {
+    Rng rng(derive_seed(s.train.seed, kPredSubsetStream));
+    train = subset_in_order(train, static_cast<size_t>(s.train.max_samples), rng, SubsetDraw::Partial);
+  }
+
+  const int V = static_cast<int>(selected.size());
+  SpeedPredictorOptions po;
+  po.variables = V;
+  po.history = H;
+  po.units = method == "cim-mlp" ? s.cim.mlp_encoder_units : s.cim.encoder_units;
+  po.hidden = s.cim.hidden;
+  torch::manual_seed(s.train.seed);
+  SpeedPredictor net(po);
+  if (!init_predictor.empty()) load_module_bytes(*net, init_predictor, torch::kCPU, "--init predictor");
+  net->to(device);
+  torch::optim::Adam opt(net->parameters(), torch::optim::AdamOptions(s.cim.lr));
+  PredictorObjective objective(eps, enc, selected, train, val, net, device, s);
+
+  std::string metrics;
+  LoopState state;
+  state.lr = s.cim.lr;
+  std::string best_bytes;
+  if (!init_predictor.empty() && !val.empty()) {
+    // Epoch 0: the initial predictor on the new data (the fine-tuned one must beat it).
+    state.has_best = true;
+    state.best_epoch = 0;
+    state.best_loss = validation_loss(objective, val.size(), s.cim.batch_size);
+    best_bytes = save_module_bytes(*net);
+    metrics += json({{"epoch", 0}, {"val_loss", state.best_loss}}).dump() + "\n";
+  }
+  std::optional<Progress> progress;
+  if (!quiet) progress.emplace("train " + method + " predictor", static_cast<long>(train.size()) * s.cim.epochs);
+  LoopPlan plan;
+  plan.last_epoch = s.cim.epochs;
+  plan.batch_size = s.cim.batch_size;
+  plan.train_size = train.size();
+  plan.val_size = val.size();
+  plan.shuffle_seed = s.train.seed ^ kPredOrderStream;
+  plan.progress = progress ? &*progress : nullptr;
+  const int epochs = s.cim.epochs;
+  plan.note = [epochs](int epoch, double v) { return epoch_note(epoch, epochs, "loss", v, 4); };
+  const LoopTotals totals = train_epochs(objective, opt, plan, state, [&](const EpochResult& r) {
+    json m = {{"epoch", r.epoch}, {"train_loss", r.train_loss}};
+    if (r.val_loss) m["val_loss"] = *r.val_loss;
+    m["seconds"] = r.seconds_since_start();
+    m["samples_per_s"] = r.samples_per_s;
+    metrics += m.dump() + "\n";
+    if (r.improved) best_bytes = save_module_bytes(*net);
+  });
+  if (progress) progress->finish();
+  write_file_atomic(out + "/" + kCimPredictorFile, best_bytes);
+  write_file_atomic(out + "/" + kCimPredictorMetrics, metrics);
+
+  PredictorResult r;
+  TrainSummary& sum = r.summary;
+  sum.epochs_done = s.cim.epochs;
+  sum.best_epoch = state.best_epoch;
+  sum.best_loss = state.best_loss;
+  sum.has_validation = !val.empty();
+  sum.train_samples = static_cast<long>(train.size());
+  sum.val_samples = static_cast<long>(val.size());
+  sum.val_episodes = static_cast<int>(val_eps.size());
+  sum.train_episodes = n_eps - sum.val_episodes;
+  sum.samples_per_s = totals.samples_per_s();
+  r.figures = {{"variables", V},
+               {"epochs", s.cim.epochs},
+               {"best_epoch", state.best_epoch},
+               {"best_loss", state.best_loss},
+               {"loss", s.train.loss},
+               {"has_validation", !val.empty()},
+               {"train_samples", sum.train_samples},
+               {"val_samples", sum.val_samples},
+               {"train_episodes", sum.train_episodes},
+               {"val_episodes", sum.val_episodes},
+               {"samples_per_s", sum.samples_per_s},
+               {"seconds", seconds_since(start)}};
+  return r;
+}
+
+// The traversal's base frame: the first frame with a leader within 20 m, else the first with
+// anything in the view, else the very first frame.
+std::vector<float> base_view(const EpisodeSet& eps, const GreyView& view, json& where) {
+  std::vector<float> v(kVaeSize * kVaeSize);
+  auto take = [&](int e, int t, const char* why) {
+    view_from_packed(view, eps.episodes[e].packed.data() + static_cast<size_t>(t) * eps.frame_pixels(),
+                     v.data());
+    where = {{"episode", e}, {"t", t}, {"file", eps.episodes[e].file}, {"why", why}};
+    return v;
+  };
+  for (int e = 0; e < static_cast<int>(eps.episodes.size()); ++e)
+    for (int t = 0; t < eps.episodes[e].frames; ++t) {
+      const double present = ground_truth_value(eps.episodes[e], "lead_present", t);
+      const double d = ground_truth_value(eps.episodes[e], "lead_distance", t);
+      if (present == 1.0 && d < 20) return take(e, t, "leader within 20 m");
+    }
+  for (int e = 0; e < static_cast<int>(eps.episodes.size()); ++e)
+    for (int t = 0; t < eps.episodes[e].frames; ++t) {
+      const uint8_t* p = eps.episodes[e].packed.data() + static_cast<size_t>(t) * eps.frame_pixels();
+      for (size_t i = 0; i < eps.frame_pixels(); ++i)
+        if (p[i] & view.mask) return take(e, t, "first frame with something in the view");
+    }
+  return take(0, 0, "first frame");
+}
+
+}  // namespace
+
+TrainSummary train_cim(const Settings& settings_in, const TrainRequest& req) {
+  const auto run_start = Clock::now();
+  const Settings s = effective_settings(req.method, settings_in);
+  if (req.out_dir.empty()) throw ConfigError("train: no output folder given (--out)");
+  if (!req.init.empty() && !req.vae_from.empty())
+    throw ConfigError("give --init or --vae, not both (--init already brings its run's VAE)");
+  const std::string out = req.out_dir;
+  const std::string data_dir = canonical_dir(req.data_dir);
+  const std::string init_dir = canonical_dir(req.init), vae_dir = canonical_dir(req.vae_from);
+  const json settings_json = settings_to_json(s);
+
+  // Refusals first, before any data is read.
+  refuse_other_method_folder(out, req.method);
+  std::optional<CimRunInfo> previous = read_cim_run(out);
+  auto inputs = [](const std::string& data, const std::string& init, const std::string& vae) {
+    return "data " + data + (init.empty() ? "" : ", --init " + init) +
+           (vae.empty() ? "" : ", --vae " + vae);
+  };
+  if (previous)
+    refuse_other_run({previous->method, previous->record.at("settings"),
+                      inputs(previous->data_dir, previous->init, previous->vae_from)},
+                     {req.method, settings_json, inputs(data_dir, init_dir, vae_dir)}, out,
+                     {"vae", "cim", "bev", "train"}, may_differ);
+  std::optional<CimRunInfo> init_run, vae_run;
+  if (!init_dir.empty()) {
+    init_run = require_cim_run(init_dir, req.method, {"vae", "causes", "predictor"}, "--init");
+    check_same_vae(*init_run, s.vae, req.method, "--init");
+    const CimSettings& a = init_run->cim;
+    if (a.history != s.cim.history || a.history_stride != s.cim.history_stride ||
+        a.encoder_units != s.cim.encoder_units || a.mlp_encoder_units != s.cim.mlp_encoder_units ||
+        a.hidden != s.cim.hidden)
+      throw ConfigError("--init " + init_dir + ": its speed predictor has another shape (cim.history, "
+                        "history_stride, encoder_units, mlp_encoder_units or hidden differ)");
+  }
+  if (!vae_dir.empty()) {
+    vae_run = require_cim_run(vae_dir, "", {"vae"}, "--vae");
+    check_same_vae(*vae_run, s.vae, req.method, "--vae");
+  }
+
+  const TrainingDevice dev = training_device(s.train.device, s.train.threads);
+  const torch::Device& device = dev.device;
+  const std::string& device_name = dev.name;
+
+  const EpisodeSet eps = load_episode_set(req.data_dir);
+  const GreyView view = resolve_view(s.vae.view, eps.channel_names, eps.height, eps.width);
+  const CimRunInfo* source = init_run ? &*init_run : vae_run ? &*vae_run : nullptr;
+  if (source) check_same_input(*source, eps, init_run ? "--init" : "--vae");
+
+  json record;
+  if (previous) {
+    record = previous->record;
+    if (record.at("input").at("frames").get<long>() != eps.total_frames() ||
+        record.at("input").at("episodes").get<int>() != static_cast<int>(eps.episodes.size()))
+      throw ConfigError(out + " holds a run trained on other data (" +
+                        std::to_string(record.at("input").at("episodes").get<int>()) +
+                        " episodes), but " + data_dir + " now gives " +
+                        std::to_string(eps.episodes.size()) + ": the data changed; train into "
+                        "another --out folder");
+  } else {
+    record = {{"version", kCimRunVersion},
+              {"method", req.method},
+              {"settings", settings_json},
+              {"data_dir", data_dir},
+              {"init", init_dir},
+              {"vae_from", vae_dir},
+              {"device", device_name},
+              {"input",
+               {{"format", "bev"},
+                {"channels", eps.channels},
+                {"height", eps.height},
+                {"width", eps.width},
+                {"channel_names", eps.channel_names},
+                {"dt", eps.dt},
+                {"metres_per_pixel", eps.metres_per_pixel},
+                {"view_channels", view.channels},
+                {"episodes", static_cast<int>(eps.episodes.size())},
+                {"frames", eps.total_frames()}}},
+              {"stages", json::array()},
+              {"figures", json::object()}};
+  }
+  fs::create_directories(out);
+  remove_stale_temporaries(out);
+  auto done = [&](const std::string& stage) {
+    for (const auto& st : record["stages"])
+      if (st == stage) return true;
+    return false;
+  };
+  auto commit = [&](const std::string& stage, const json& figures) {
+    record["figures"][stage] = figures;
+    if (!done(stage)) record["stages"].push_back(stage);
+    write_file_atomic(out + "/" + kCimRunJson, record.dump(2) + "\n");
+  };
+  if (!previous) write_file_atomic(out + "/" + kCimRunJson, record.dump(2) + "\n");
+  say(req.quiet, "cim pipeline (" + req.method + ") -> " + out);
+
+  // Stage vae: trained here, or copied from --init / --vae.
+  if (!done("vae")) {
+    if (source) {
+      write_file_atomic(out + "/" + kCimVaeFile, read_file_bytes(source->dir + "/" + kCimVaeFile));
+      if (fs::exists(source->dir + "/" + kCimVaeMetrics))
+        write_file_atomic(out + "/" + kCimVaeMetrics, read_file_bytes(source->dir + "/" + kCimVaeMetrics));
+      say(req.quiet, "  vae: copied from " + source->dir);
+      commit("vae", {{"copied_from", source->dir}});
+    } else {
+      commit("vae", train_vae(s, eps, view, device, out, req.quiet));
+    }
+  }
+  BetaVae vae(s.vae.latents);
+  load_module_bytes(*vae, read_file_bytes(out + "/" + kCimVaeFile), device, out + "/" + kCimVaeFile);
+  vae->eval();
+
+  std::optional<Encoded> enc;
+  auto encoded = [&]() -> const Encoded& {
+    if (!enc) enc = encode_all(vae, eps, view, device, req.quiet);
+    return *enc;
+  };
+
+  // Stages series and causes (a few-shot run keeps its init run's causes).
+  if (init_run) {
+    if (!done("causes")) {
+      json c = json::parse(read_file_bytes(init_run->dir + "/" + kCimCausesJson));
+      c["copied_from"] = init_run->dir;
+      write_file_atomic(out + "/" + kCimCausesJson, c.dump(2) + "\n");
+      commit("causes", {{"copied_from", init_run->dir}, {"selected", c.at("selected")}});
+    }
+  } else if (!done("series") || !done("causes")) {
+    const auto start = Clock::now();
+    const SeriesRows rows = build_series(eps, encoded(), s.cim.series_stride);
+    if (!done("series")) {
+      write_file_atomic(out + "/" + kCimSeriesCsv, rows.csv);
+      commit("series", {{"rows", static_cast<long>(rows.rows.size())}, {"stride", s.cim.series_stride}});
+    }
+    const CauseSelection sel = select_causes(rows.speed, rows.latents, s.cim, req.method == "cim-mlp");
+    const json c = causes_json(req.method, s.cim, sel, rows, eps);
+    write_file_atomic(out + "/" + kCimCausesJson, c.dump(2) + "\n");
+    std::string list;
+    for (int i : sel.ranked)
+      list += " z" + std::to_string(i) + " (p " + fmt("%.3g", sel.tests[i].test.p_value) + ")";
+    if (sel.fallback)
+      std::fprintf(stderr, "warning: no latent Granger-causes the speed at %s alpha %g; the speed "
+                           "predictor uses the smallest-p latent z%d alone\n",
+                   s.cim.correction.c_str(), s.cim.alpha, sel.ranked[0]);
+    say(req.quiet, "  causes: " + std::to_string(sel.significant) + " of " +
+                       std::to_string(s.vae.latents) + " latents significant (" + s.cim.correction +
+                       ", alpha " + fmt("%g", s.cim.alpha) + ", " + std::to_string(s.cim.lags) +
+                       " lags, " + std::to_string(sel.rows) + " rows); picked" + list +
+                       (req.method == "cim-mlp" ? "; cim-mlp uses all latents" : ""));
+    commit("causes", {{"significant", sel.significant},
+                      {"ranked", sel.ranked},
+                      {"selected_count", static_cast<int>(sel.selected.size())},
+                      {"fallback", sel.fallback},
+                      {"capped", sel.capped},
+                      {"seconds", seconds_since(start)}});
+  }
+  const json causes = json::parse(read_file_bytes(out + "/" + kCimCausesJson));
+  const std::vector<int> selected = causes.at("selected").get<std::vector<int>>();
+
+  TrainSummary sum;
+  sum.method = req.method;
+  sum.out_dir = out;
+  sum.device = device_name;
+  sum.weights_file = kCimPredictorFile;
+  if (!done("predictor")) {
+    const std::string init_bytes =
+        init_run ? read_file_bytes(init_run->dir + "/" + kCimPredictorFile) : std::string();
+    PredictorResult r = train_predictor(s, req.method, eps, encoded(), selected, init_bytes, device,
+                                        out, req.quiet);
+    if (init_run) r.figures["init"] = init_run->dir;
+    commit("predictor", r.figures);
+    sum.samples_per_s = r.summary.samples_per_s;
+  } else {
+    sum.resumed_from = s.cim.epochs;
+  }
+  const json& pf = record["figures"]["predictor"];
+  sum.epochs_done = pf.at("epochs").get<int>();
+  sum.best_epoch = pf.at("best_epoch").get<int>();
+  sum.best_loss = pf.at("best_loss").get<double>();
+  sum.has_validation = pf.at("has_validation").get<bool>();
+  sum.train_samples = pf.at("train_samples").get<long>();
+  sum.val_samples = pf.at("val_samples").get<long>();
+  sum.train_episodes = pf.at("train_episodes").get<int>();
+  sum.val_episodes = pf.at("val_episodes").get<int>();
+  say(req.quiet, "  predictor: " + std::to_string(selected.size()) + " input variable(s), best epoch " +
+                     std::to_string(sum.best_epoch) + ", " + (sum.has_validation ? "validation" : "training") +
+                     " " + s.train.loss + " loss " + fmt("%.4f", sum.best_loss) + " m/s -> " + out +
+                     "/" + kCimPredictorFile);
+
+  if (!done("pictures")) {
+    json where;
+    const std::vector<float> base = base_view(eps, view, where);
+    std::vector<int> ranked = causes.at("ranked").get<std::vector<int>>();
+    write_traversal_png(out + "/" + kCimTraversalPng, vae, base, ranked);
+    std::vector<double> p;
+    std::vector<bool> sel_flags, sig_flags;
+    for (const auto& l : causes.at("latents")) {
+      p.push_back(l.at("p_value").get<double>());
+      // Highlight the Granger picks (for cim-mlp every latent is an input; the picks still matter).
+      const int i = l.at("index").get<int>();
+      sel_flags.push_back(std::find(ranked.begin(), ranked.end(), i) != ranked.end());
+      sig_flags.push_back(l.at("significant").get<bool>());
+    }
+    write_granger_png(out + "/" + kCimGrangerPng, p, sel_flags, sig_flags,
+                      causes.at("threshold_p").get<double>());
+    commit("pictures", {{"traversal", kCimTraversalPng},
+                        {"granger", kCimGrangerPng},
+                        {"traversal_rows", ranked},
+                        {"base_frame", where}});
+  }
+  sum.seconds = seconds_since(run_start);
+  return sum;
+}
+
+// ---- the agent ------------------------------------------------------------------------------
+
+namespace {
+
+// The history frames' grey views -> the VAE's mu -> the selected latents (all of them for
+// cim-mlp) -> the speed predictor -> target speed (>= 0) -> SpeedPid (seed 000 eq. 2). The path
+// is the route the ego follows (no lateral control).
+class CimAgent : public Agent {
+ public:
+  CimAgent(const std::string& method, const std::string& dir, const Settings& s)
+      : method_(method),
+        run_(require_cim_run(dir, method, {"vae", "causes", "predictor"}, "agent '" + method + "':")),
+        vae_(run_.vae.latents),
+        pid_(s.control, EgoModel(s.ego), s.world.dt) {
+    view_ = resolve_view(run_.vae.view, run_.channel_names, run_.height, run_.width);
+    try {
+      const nlohmann::json causes = nlohmann::json::parse(read_file_bytes(dir + "/" + kCimCausesJson));
+      selected_ = causes.at("selected").get<std::vector<int>>();
+    } catch (const nlohmann::json::exception& e) {
+      throw DataError(dir + "/" + kCimCausesJson + " is damaged (" + e.what() + ")");
+    }
+    if (selected_.empty()) throw DataError(dir + "/" + kCimCausesJson + " selects no latent");
+    for (int i : selected_)
+      if (i < 0 || i >= run_.vae.latents)
+        throw DataError(dir + "/" + kCimCausesJson + " selects latent " + std::to_string(i) +
+                        " of " + std::to_string(run_.vae.latents));
+    load_module_bytes(*vae_, read_file_bytes(dir + "/" + kCimVaeFile), torch::kCPU,
+                      dir + "/" + kCimVaeFile);
+    vae_->eval();
+    SpeedPredictorOptions po;
+    po.variables = static_cast<int>(selected_.size());
+    po.history = run_.cim.history;
+    po.units = method == "cim-mlp" ? run_.cim.mlp_encoder_units : run_.cim.encoder_units;
+    po.hidden = run_.cim.hidden;
+    predictor_ = SpeedPredictor(po);
+    load_module_bytes(*predictor_, read_file_bytes(dir + "/" + kCimPredictorFile), torch::kCPU,
+                      dir + "/" + kCimPredictorFile);
+    predictor_->eval();
+    input_ = torch::zeros({1, po.variables, po.history});
+    view_buf_ = torch::zeros({1, 1, kVaeSize, kVaeSize});
+  }
+
+  std::string name() const override { return method_; }
+  int history() const override { return run_.cim.history; }
+  int history_stride() const override { return run_.cim.history_stride; }
+  void begin_episode() override {
+    pid_.reset();
+    target_ = std::nan("");
+    cache_.clear();
+  }
+
+  Control act(const Observation& obs, const World&) override {
+    check_observation(method_, obs, run_.channels, run_.height, run_.width, history());
+    torch::NoGradGuard no_grad;
+    float* in = input_.data_ptr<float>();
+    const int H = history(), V = static_cast<int>(selected_.size());
+    for (int k = 0; k < H; ++k) {
+      const std::vector<float>& mu = mu_of(obs.frames[k]);
+      for (int v = 0; v < V; ++v) in[v * H + k] = mu[selected_[v]];
+    }
+    target_ = std::max(0.0, static_cast<double>(predictor_->forward(input_).item<float>()));
+    return pid_.control(target_, obs.speed);
+  }
+
+  double last_target_speed() const override { return target_; }
+
+ private:
+  // mu of one frame, one image at a time (so a frame's mu never depends on its batch). The
+  // views of the last few frames are remembered: with history_stride 1 each step encodes only
+  // the new frame. Keys are the whole view, so a hit is exact.
+  const std::vector<float>& mu_of(const uint8_t* frame) {
+    std::vector<float> view(kVaeSize * kVaeSize);
+    view_from_planes(view_, frame, view.data());
+    for (const auto& [v, mu] : cache_)
+      if (v == view) return mu;
+    std::memcpy(view_buf_.data_ptr<float>(), view.data(), view.size() * sizeof(float));
+    torch::Tensor mu = vae_->encode(view_buf_).first.contiguous();
+    std::vector<float> m(mu.data_ptr<float>(), mu.data_ptr<float>() + mu.numel());
+    const size_t keep = static_cast<size_t>(history() * history_stride() + 1);
+    while (cache_.size() >= keep) cache_.pop_front();
+    cache_.emplace_back(std::move(view), std::move(m));
+    return cache_.back().second;
+  }
+
+  std::string method_;
+  CimRunInfo run_;
+  GreyView view_;
+  std::vector<int> selected_;
+  BetaVae vae_;
+  SpeedPredictor predictor_{nullptr};
+  SpeedPid pid_;
+  torch::Tensor input_, view_buf_;
+  std::deque<std::pair<std::vector<float>, std::vector<float>>> cache_;
+  double target_ = std::nan("");
+};
+
+}  // namespace
+
+std::unique_ptr<Agent> load_cim_agent(const std::string& method, const std::string& dir,
+                                      const Settings& settings) {
+  set_torch_threads(1);
+  return std::make_unique<CimAgent>(method, dir, settings);
+}
+
+void cim_entangled_settings(Settings& s) { s.vae.beta = 1.0; }  // the plain VAE of the ablation
+
+}  // namespace cd

@@ -1,0 +1,57 @@
+#pragma once
+// The methods of SPEC section 3, each a name usable in `causaldrive train --method NAME` and
+// as an agent. One table (methods/registry.cpp) says, per method, what it trains, how its agent
+// is loaded, how it adjusts the settings and its help line; each method is one file of this
+// folder, named after it.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "agents/agent.hpp"
+#include "app/settings.hpp"
+#include "train/request.hpp"
+
+namespace cd {
+
+using TrainFn = TrainSummary (*)(const Settings& settings, const TrainRequest& request);
+// `run_dir` is the method's training output (empty for methods without training).
+using AgentFn = std::unique_ptr<Agent> (*)(const std::string& method, const std::string& run_dir,
+                                           const Settings& settings);
+using AdjustFn = void (*)(Settings& settings);
+
+struct MethodSpec {
+  const char* name;
+  const char* help;         // one line: what it is
+  TrainFn train;            // nullptr: an agent without training (expert, cs)
+  AgentFn agent;
+  AdjustFn adjust;          // nullptr: it trains with the settings as given
+  bool reuses_runs;         // takes --init and --vae (the cim family)
+};
+
+// Every method of the table, in its order.
+const std::vector<MethodSpec>& methods();
+// In SPEC section 3 but not implemented yet.
+const std::vector<std::string>& planned_methods();
+
+// The spec of `name`; ConfigError listing the known names otherwise.
+const MethodSpec& find_method(const std::string& name);
+// Names of the trainable methods, in table order.
+std::vector<std::string> trainable_methods();
+
+// Throws ConfigError: "not available in this version" for a planned method, "nothing to
+// train" for the agent-only names (expert, cs), the list of known names otherwise.
+void check_train_method(const std::string& method);
+
+// The settings a method really trains with (bc-so sees one frame, cim-entangled's VAE has
+// beta 1, dim is a single model).
+Settings effective_settings(const std::string& method, Settings settings);
+
+// Trains request.method (checked first).
+TrainSummary train_method(const Settings& settings, const TrainRequest& request);
+
+// Agents by name: expert, cs, and the learned methods (which need their run folder).
+// Throws ConfigError for an unknown name or a folder of another method.
+std::unique_ptr<Agent> make_agent(const std::string& name, const std::string& run_dir,
+                                  const Settings& settings);
+
+}  // namespace cd

@@ -1,0 +1,126 @@
+// The one table of methods. Adding a method: its file in this folder, and its line here.
+#include <algorithm>
+
+#include "core/error.hpp"
+#include "methods/method.hpp"
+
+namespace cd {
+
+// Defined in methods/<name>.cpp.
+std::unique_ptr<Agent> load_expert_agent(const std::string&, const std::string&, const Settings&);
+std::unique_ptr<Agent> load_cs_agent(const std::string&, const std::string&, const Settings&);
+TrainSummary train_bc(const Settings&, const TrainRequest&);
+std::unique_ptr<Agent> load_bc_agent(const std::string&, const std::string&, const Settings&);
+void bc_so_settings(Settings&);
+TrainSummary train_dim(const Settings&, const TrainRequest&);
+std::unique_ptr<Agent> load_dim_agent(const std::string&, const std::string&, const Settings&);
+void dim_single_model(Settings&);
+TrainSummary train_cim(const Settings&, const TrainRequest&);
+std::unique_ptr<Agent> load_cim_agent(const std::string&, const std::string&, const Settings&);
+void cim_entangled_settings(Settings&);
+
+const std::vector<MethodSpec>& methods() {
+  static const std::vector<MethodSpec> table = {
+      {"expert", "the privileged autopilot the data was collected with",
+       nullptr, load_expert_agent, nullptr, false},
+      {"cs", "constant speed along the route, blind (seed 000): the collision upper bound",
+       nullptr, load_cs_agent, nullptr, false},
+      {"bc-so", "behaviour cloning from the current frame (seed 001)",
+       train_bc, load_bc_agent, bc_so_settings, false},
+      {"bc-oh", "behaviour cloning from a history of frames (seed 001)",
+       train_bc, load_bc_agent, nullptr, false},
+      {"dim", "imitative trajectory density planned by likelihood (seed 000)",
+       train_dim, load_dim_agent, dim_single_model, false},
+      {"rip", "ensemble of DIMs on bootstrap resamples, worst-case planning (seed 000)",
+       train_dim, load_dim_agent, nullptr, false},
+      {"cim", "beta-VAE, Granger causes, causal speed predictor (seed 000)",
+       train_cim, load_cim_agent, nullptr, true},
+      {"cim-mlp", "cim whose speed predictor sees every latent (seed 000 ablation)",
+       train_cim, load_cim_agent, nullptr, true},
+      {"cim-entangled", "cim with a plain VAE, beta 1 (seed 000 ablation)",
+       train_cim, load_cim_agent, cim_entangled_settings, true},
+  };
+  return table;
+}
+
+const std::vector<std::string>& planned_methods() {
+  static const std::vector<std::string> names = {"residual", "fca", "keyframe", "hd", "dagger"};
+  return names;
+}
+
+namespace {
+
+std::string join(const std::vector<std::string>& names) {
+  std::string s;
+  for (const auto& n : names) s += (s.empty() ? "" : ", ") + n;
+  return s;
+}
+
+const MethodSpec* lookup(const std::string& name) {
+  for (const MethodSpec& m : methods())
+    if (name == m.name) return &m;
+  return nullptr;
+}
+
+}  // namespace
+
+std::vector<std::string> trainable_methods() {
+  std::vector<std::string> names;
+  for (const MethodSpec& m : methods())
+    if (m.train) names.push_back(m.name);
+  return names;
+}
+
+const MethodSpec& find_method(const std::string& name) {
+  if (const MethodSpec* m = lookup(name)) return *m;
+  std::vector<std::string> known;
+  for (const MethodSpec& m : methods()) known.push_back(m.name);
+  throw ConfigError("unknown agent '" + name + "' (known: " + join(known) + ")");
+}
+
+void check_train_method(const std::string& method) {
+  const std::vector<std::string> available = trainable_methods();
+  if (std::find(available.begin(), available.end(), method) != available.end()) return;
+  const auto& planned = planned_methods();
+  if (std::find(planned.begin(), planned.end(), method) != planned.end())
+    throw ConfigError("method '" + method + "' is not available in this version (available: " +
+                      join(available) + ")");
+  if (lookup(method))
+    throw ConfigError("method '" + method + "' is an agent without training (trainable: " +
+                      join(available) + ")");
+  std::vector<std::string> known = available;
+  known.insert(known.end(), planned.begin(), planned.end());
+  throw ConfigError("unknown method '" + method + "' (known: " + join(known) +
+                    "; available in this version: " + join(available) + ")");
+}
+
+Settings effective_settings(const std::string& method, Settings s) {
+  const MethodSpec* m = lookup(method);
+  if (m && m->adjust) m->adjust(s);
+  return s;
+}
+
+TrainSummary train_method(const Settings& settings, const TrainRequest& request) {
+  check_train_method(request.method);
+  const MethodSpec& m = find_method(request.method);
+  if (!m.reuses_runs && (!request.init.empty() || !request.vae_from.empty()))
+  {
+    std::vector<std::string> reusing;
+    for (const MethodSpec& r : methods())
+      if (r.reuses_runs) reusing.push_back(r.name);
+    throw ConfigError("--init and --vae apply to the cim family only (" + join(reusing) +
+                      "), not to '" + request.method + "'");
+  }
+  return m.train(settings, request);
+}
+
+std::unique_ptr<Agent> make_agent(const std::string& name, const std::string& run_dir,
+                                  const Settings& settings) {
+  const MethodSpec& m = find_method(name);
+  if (m.train && run_dir.empty())
+    throw ConfigError("agent '" + name + "' needs --checkpoint DIR (the output of "
+                      "`causaldrive train --method " + name + "`)");
+  return m.agent(name, run_dir, settings);
+}
+
+}  // namespace cd

@@ -1,0 +1,47 @@
+#pragma once
+// The settings of the networks and what they see ([model], [vae], [dim]); torch-free.
+#include <string>
+
+namespace cd {
+
+// The network of the behaviour-cloning methods (bc-so, bc-oh) and what it sees.
+struct ModelSettings {
+  std::string backbone = "small";  // small (CPU-sized CNN) | resnet34 (the seeds', GPU)
+  int history = 4;                 // frames stacked by bc-oh (bc-so: 1)
+  int history_stride = 2;          // simulation steps between stacked frames
+  std::string action_head = "throttle_brake";  // throttle_brake | target_speed
+  bool speed_input = false;        // false: the measured speed is zeroed (the seeds' POMDP)
+  int features = 256;              // width of the backbone's output and the branches
+  double speed_loss_weight = 0.05; // auxiliary speed-prediction head
+  double dropout = 0.2;
+};
+
+// Perception model of the cim family (seed 000 section 5.4.2): a beta-VAE on one grey BEV view.
+struct VaeSettings {
+  std::string view = "vehicles";  // BEV channel(s) merged into the grey input, "a+b" for several
+  int latents = 128;
+  double beta = 6.0;     // cim and cim-mlp; cim-entangled trains with beta = 1
+  int epochs = 4;
+  int batch_size = 64;
+  double lr = 1e-3;
+  long max_frames = 30000;  // seeded subset of the data's frames it trains on, 0 = all
+};
+
+// The imitative trajectory model (dim) and its ensemble (rip), seed 000 section 5.3.
+struct DimSettings {
+  int horizon = 4;          // future waypoints predicted
+  int waypoint_step = 5;    // simulation steps between waypoints (0.5 s at dt 0.1)
+  int past = 4;             // past ego positions it is conditioned on
+  int features = 128;       // width of the BEV encoder output
+  int hidden = 128;
+  double min_std = 0.05;    // m, lower bound of each step's standard deviation
+  int plan_iterations = 10; // gradient-ascent steps of the planner
+  int replan_steps = 2;     // the agent plans every this many simulation steps
+  double plan_lr = 0.2;     // m per step (Adam)
+  double goal_distance = 20;  // m along the route: the goal the plan is pulled toward
+  double goal_weight = 0.02;  // weight of -|last waypoint - goal|^2 (per m^2) in the objective
+  int ensemble = 3;           // rip: DIMs trained on bootstrap resamples of the episodes
+  std::string aggregation = "worst";  // rip: worst (min over members) | mean
+};
+
+}  // namespace cd

@@ -1,0 +1,85 @@
+#pragma once
+// The checkpoint folder written by `causaldrive train`:
+//
+//   model.pt         network after the last finished epoch (torch::save archive)
+//   best.pt          network of the epoch with the lowest validation loss (what agents load)
+//   optimizer.pt     Adam state after the last finished epoch (for resuming)
+//   checkpoint.json  the commit record: method, settings, input format, data folder, sample
+//                    counts, epochs done, best epoch, learning rate, per-epoch metrics
+//   metrics.jsonl    one JSON line per finished epoch, regenerated from checkpoint.json
+//
+// Commit protocol (an interrupted run never leaves a mixed state): after epoch N the new
+// .pt files are written atomically under pending names "<name>.e<N>.pending", then
+// checkpoint.json (saying N epochs) is written atomically — the commit — and then the pending
+// files are renamed to their final names. A later run first rolls pending files of the
+// committed epoch forward and deletes any others (an epoch that was never committed).
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "app/settings.hpp"
+
+namespace cd {
+
+inline constexpr const char* kCheckpointJson = "checkpoint.json";
+inline constexpr const char* kMetricsJsonl = "metrics.jsonl";
+inline constexpr const char* kModelFile = "model.pt";
+inline constexpr const char* kBestFile = "best.pt";
+inline constexpr const char* kOptimizerFile = "optimizer.pt";
+inline constexpr int kCheckpointVersion = 1;
+
+struct EpochMetrics {
+  int epoch = 0;  // 1-based
+  double train_loss = 0;
+  std::optional<double> val_loss;  // none without validation episodes
+  double lr = 0;                   // the learning rate the epoch trained with
+  double seconds = 0;
+  double samples_per_s = 0;        // training samples per second of the training pass
+};
+
+// What the network reads, fixed by the data it was trained on.
+struct InputFormat {
+  int channels = 0, height = 0, width = 0;
+  int history = 1, stride = 1;
+  double dt = 0.1, metres_per_pixel = 0.5;
+  std::vector<std::string> channel_names;
+};
+
+struct Checkpoint {
+  std::string method;
+  nlohmann::json settings;  // settings_to_json of the settings trained with
+  ModelSettings model;      // settings["model"], parsed
+  InputFormat input;
+  std::string data_dir;     // absolute
+  long train_samples = 0, val_samples = 0;
+  int train_episodes = 0, val_episodes = 0;
+  std::string device;       // cpu | cuda, where it trained
+  int epochs_done = 0;
+  int best_epoch = 0;       // 0: none yet
+  double best_loss = 0;     // validation loss of best_epoch (training loss without validation)
+  double lr = 0;            // learning rate of the next epoch
+  int bad_epochs = 0;       // epochs since the last improvement (plateau schedule)
+  std::vector<EpochMetrics> metrics;
+};
+
+nlohmann::json checkpoint_to_json(const Checkpoint& c);
+// Throws DataError naming `where` when a key is missing or has the wrong type.
+Checkpoint checkpoint_from_json(const nlohmann::json& j, const std::string& where);
+
+// Reads dir/checkpoint.json: nullopt when there is none, DataError when it is damaged.
+std::optional<Checkpoint> read_checkpoint(const std::string& dir);
+// Like read_checkpoint, but a missing checkpoint is a DataError too.
+Checkpoint require_checkpoint(const std::string& dir);
+
+// The metrics.jsonl text of a checkpoint: one line per finished epoch.
+std::string metrics_jsonl(const Checkpoint& c);
+
+// Name of the pending file of `final_name` for epoch `epoch` (see the commit protocol).
+std::string pending_name(const std::string& final_name, int epoch);
+// Rolls the pending files of epoch `committed` forward and removes the others, plus
+// leftover temporary files. Returns how many were rolled forward.
+int settle_pending_files(const std::string& dir, int committed);
+
+}  // namespace cd

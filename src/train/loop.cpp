@@ -1,0 +1,139 @@
+#include "train/loop.hpp"
+
+#include "train/request.hpp"
+
+#include <algorithm>
+#include <cstdio>
+
+#include "core/error.hpp"
+#include "core/progress.hpp"
+#include "core/rng.hpp"
+
+namespace cd {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+}  // namespace
+
+double EpochResult::seconds_since_start() const { return seconds_since(started); }
+
+BatchLoss Objective::update(const uint32_t* rows, int64_t n, torch::optim::Optimizer& opt,
+                            double clip_grad_norm) {
+  BatchLoss b = loss(true, rows, n);
+  opt.zero_grad();
+  b.loss.backward();
+  if (clip_grad_norm > 0) {
+    std::vector<torch::Tensor> params;
+    for (const auto& group : opt.param_groups())
+      params.insert(params.end(), group.params().begin(), group.params().end());
+    torch::nn::utils::clip_grad_norm_(params, clip_grad_norm);
+  }
+  opt.step();
+  return b;
+}
+
+std::string epoch_note(int epoch, int epochs, const char* what, double value, int digits) {
+  char note[96];
+  std::snprintf(note, sizeof note, "epoch %d/%d %s %.*f", epoch, epochs, what, digits, value);
+  return note;
+}
+
+std::string resolve_device(const std::string& wanted) {
+  if (wanted == "cpu") return "cpu";
+  bool cuda = torch::cuda::is_available();
+  if (wanted == "auto") return cuda ? "cuda" : "cpu";
+  if (wanted == "cuda") {
+    if (!cuda)
+      throw ConfigError("train.device = \"cuda\" but no CUDA device is usable (this libtorch "
+                        "build or machine has none); use \"cpu\" or \"auto\"");
+    return "cuda";
+  }
+  throw ConfigError("train.device must be cpu, cuda or auto (got '" + wanted + "')");
+}
+
+TrainingDevice training_device(const std::string& wanted, int threads) {
+  const std::string name = resolve_device(wanted);
+  torch::set_num_threads(threads);
+  return {name, torch::Device(name == "cuda" ? torch::kCUDA : torch::kCPU)};
+}
+
+void set_learning_rate(torch::optim::Optimizer& opt, double lr) {
+  for (auto& group : opt.param_groups()) group.options().set_lr(lr);
+}
+
+double validation_loss(Objective& objective, size_t val_size, int batch_size) {
+  torch::NoGradGuard no_grad;
+  objective.set_training(false);
+  std::vector<uint32_t> rows(std::min<size_t>(val_size, static_cast<size_t>(batch_size)));
+  double sum = 0;
+  for (size_t begin = 0; begin < val_size; begin += static_cast<size_t>(batch_size)) {
+    const int64_t n = std::min<int64_t>(batch_size, static_cast<int64_t>(val_size - begin));
+    for (int64_t i = 0; i < n; ++i) rows[i] = static_cast<uint32_t>(begin + i);
+    sum += objective.loss(false, rows.data(), n).loss.item<double>() * static_cast<double>(n);
+  }
+  return sum / static_cast<double>(val_size);
+}
+
+LoopTotals train_epochs(Objective& objective, torch::optim::Optimizer& opt, const LoopPlan& plan,
+                        LoopState& state,
+                        const std::function<void(const EpochResult&)>& after_epoch) {
+  LoopTotals totals;
+  set_learning_rate(opt, state.lr);
+  const size_t n_train = plan.train_size;
+  const size_t B = static_cast<size_t>(plan.batch_size);
+  for (int epoch = plan.first_epoch; epoch <= plan.last_epoch; ++epoch) {
+    EpochResult r;
+    r.epoch = epoch;
+    r.lr = state.lr;
+    r.started = Clock::now();
+    if (plan.torch_seed)
+      torch::manual_seed(derive_seed(*plan.torch_seed, static_cast<uint64_t>(epoch)));
+    const std::vector<uint32_t> order =
+        shuffled_order(n_train, derive_seed(plan.shuffle_seed, static_cast<uint64_t>(epoch)));
+
+    objective.set_training(true);
+    double loss_sum = 0;
+    for (size_t begin = 0; begin < n_train; begin += B) {
+      const int64_t n = std::min<int64_t>(plan.batch_size, static_cast<int64_t>(n_train - begin));
+      BatchLoss b = objective.update(order.data() + begin, n, opt, plan.clip_grad_norm);
+      const double v = b.loss.item<double>();
+      loss_sum += v * static_cast<double>(n);
+      r.train_parts.resize(b.parts.size(), 0.0);
+      for (size_t k = 0; k < b.parts.size(); ++k)
+        r.train_parts[k] += b.parts[k].item<double>() * static_cast<double>(n);
+      if (plan.progress) plan.progress->advance(n, plan.note ? plan.note(epoch, v) : "");
+    }
+    r.train_seconds = seconds_since(r.started);
+    r.train_loss = loss_sum / static_cast<double>(n_train);
+    for (double& p : r.train_parts) p /= static_cast<double>(n_train);
+    r.samples_per_s = r.train_seconds > 0 ? static_cast<double>(n_train) / r.train_seconds : 0.0;
+    totals.samples += static_cast<long>(n_train);
+    totals.seconds += r.train_seconds;
+
+    if (plan.val_size > 0) r.val_loss = validation_loss(objective, plan.val_size, plan.batch_size);
+
+    // Model selection and the plateau rule follow the validation loss when there is one.
+    const double selection = r.selection();
+    r.improved = !state.has_best || selection < state.best_loss;
+    if (r.improved) {
+      state.has_best = true;
+      state.best_epoch = epoch;
+      state.best_loss = selection;
+      state.bad_epochs = 0;
+    } else if (plan.lr_patience >= 0 && ++state.bad_epochs > plan.lr_patience) {
+      state.lr = std::max(state.lr * plan.lr_decay, plan.lr_min);
+      state.bad_epochs = 0;
+      set_learning_rate(opt, state.lr);
+    }
+    after_epoch(r);
+  }
+  return totals;
+}
+
+}  // namespace cd

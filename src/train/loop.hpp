@@ -1,0 +1,111 @@
+#pragma once
+// The one epoch loop of every trainer: the seeded shuffle of each epoch, batches, the optimiser
+// step, validation, the best-epoch and plateau rules, and progress. A method supplies the loss
+// of a batch of its samples (Objective); what it keeps after an epoch (its commit) is its own.
+//
+// Randomness: epoch n visits the training samples in the order shuffled_order(n_train,
+// derive_seed(shuffle_seed, n)) (core/rng.hpp), and, when torch_seed is set, reseeds torch with
+// derive_seed(*torch_seed, n) first (dropout, sampling noise). Nothing else draws, so an epoch
+// resumed after an interruption gives the same bytes as one that never stopped.
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <torch/torch.h>
+
+namespace cd {
+
+class Progress;
+
+// A batch's loss (what is minimised) and the parts a method reports beside it (vae: recon, kl).
+struct BatchLoss {
+  torch::Tensor loss;
+  std::vector<torch::Tensor> parts;
+};
+
+// What a method trains.
+class Objective {
+ public:
+  virtual ~Objective() = default;
+  // The loss of samples rows[0..n) of the training split (training: graph kept, modules in
+  // train mode) or of the validation split (rows in order, under NoGradGuard, eval mode).
+  virtual BatchLoss loss(bool training, const uint32_t* rows, int64_t n) = 0;
+  // Puts the modules in train or eval mode.
+  virtual void set_training(bool on) = 0;
+  // One optimiser update on this batch: zero_grad, backward, clip, step. Methods with more
+  // than one optimiser or alternating steps (seed 001) override it.
+  virtual BatchLoss update(const uint32_t* rows, int64_t n, torch::optim::Optimizer& opt,
+                           double clip_grad_norm);
+};
+
+struct LoopPlan {
+  int first_epoch = 1, last_epoch = 1;  // epochs trained now, 1-based, inclusive
+  int batch_size = 64;
+  size_t train_size = 0, val_size = 0;  // samples of each split
+  uint64_t shuffle_seed = 0;
+  std::optional<uint64_t> torch_seed;
+  double clip_grad_norm = 0;  // > 0: bound the gradient's norm before each step
+  // The rule of PyTorch's ReduceLROnPlateau on the selection loss: after more than
+  // lr_patience epochs without a better one, lr = max(lr * lr_decay, lr_min). < 0: constant lr.
+  int lr_patience = -1;
+  double lr_decay = 1, lr_min = 0;
+  Progress* progress = nullptr;                            // advanced batch by batch
+  std::function<std::string(int epoch, double loss)> note;  // its note after a batch
+};
+
+// Carried from epoch to epoch (and across a resume, when the method records it).
+struct LoopState {
+  bool has_best = false;
+  int best_epoch = 0;
+  double best_loss = 0;  // selection loss of best_epoch
+  int bad_epochs = 0;    // epochs since the last improvement (plateau rule)
+  double lr = 0;         // learning rate of the next epoch
+};
+
+struct EpochResult {
+  int epoch = 0;
+  double train_loss = 0;            // mean over the epoch's samples
+  std::vector<double> train_parts;  // mean of each BatchLoss part
+  std::optional<double> val_loss;   // none without validation samples
+  double lr = 0;                    // the learning rate the epoch trained with
+  double train_seconds = 0;         // of the training pass
+  double samples_per_s = 0;         // of the training pass
+  bool improved = false;            // this epoch is the new best (state.best_epoch)
+  std::chrono::steady_clock::time_point started;
+  double selection() const { return val_loss.value_or(train_loss); }
+  double seconds_since_start() const;
+};
+
+struct LoopTotals {
+  long samples = 0;     // trained in this call
+  double seconds = 0;   // of the training passes
+  double samples_per_s() const { return seconds > 0 ? samples / seconds : 0.0; }
+};
+
+// The mean loss of the validation split (eval mode, no gradient), in batches in order.
+double validation_loss(Objective& objective, size_t val_size, int batch_size);
+
+// Trains epochs plan.first_epoch..plan.last_epoch; after each, `after_epoch` sees its result
+// (the method writes what it keeps). The optimiser's learning rate is set to state.lr first.
+LoopTotals train_epochs(Objective& objective, torch::optim::Optimizer& opt, const LoopPlan& plan,
+                        LoopState& state,
+                        const std::function<void(const EpochResult&)>& after_epoch);
+
+// Sets every parameter group's learning rate (Adam or SGD options).
+void set_learning_rate(torch::optim::Optimizer& opt, double lr);
+
+// "epoch 3/8 loss 0.1234": the progress note of a batch (`digits` after the point).
+std::string epoch_note(int epoch, int epochs, const char* what, double value, int digits);
+
+// Where a run trains: train.device resolved (train/request.hpp), and torch's threads set to
+// train.threads.
+struct TrainingDevice {
+  std::string name;  // cpu | cuda
+  torch::Device device;
+};
+TrainingDevice training_device(const std::string& wanted, int threads);
+
+}  // namespace cd

@@ -1,0 +1,36 @@
+#pragma once
+// The settings of the driving world and of the ego's vehicle model ([world], [ego]).
+#include <string>
+
+namespace cd {
+
+struct TrafficDensity {
+  double cars_per_km = 0;  // background cars per km of driving lane
+  double peds_per_km = 0;  // pedestrians per km of driving lane
+};
+
+struct WorldSettings {
+  std::string town = "town-a";  // a town name (towns/*.toml) or a path to a .net.xml
+  std::string traffic = "regular";  // empty | regular | dense
+  double dt = 0.1;                  // s per step
+  double warmup_s = 60;             // background traffic runs this long before the ego enters
+  TrafficDensity regular{4.0, 3.0};
+  TrafficDensity dense{9.0, 8.0};
+  double view_radius = 60;      // m, actors farther than this are not sensed or checked
+  double command_horizon = 30;  // m, the junction command is given this far ahead
+  double path_free_margin = 6;  // m checked beyond the stopping distance for "path free"
+};
+
+// Longitudinal vehicle model of the ego: a = throttle * max_accel * (1 - v / max_speed)
+// - brake * max_decel - rolling - drag * v^2, speed clamped to [0, max_speed].
+struct EgoSettings {
+  double length = 4.5;
+  double width = 1.8;
+  double max_accel = 3.5;   // m/s^2 at standstill, full throttle
+  double max_decel = 8.0;   // m/s^2, full brake
+  double max_speed = 20.0;  // m/s
+  double rolling = 0.1;     // m/s^2, when moving
+  double drag = 0.0008;     // 1/m
+};
+
+}  // namespace cd
