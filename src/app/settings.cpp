@@ -148,6 +148,19 @@ void visit_settings(S& st, V&& v) {
   v.text("dim", "aggregation", st.dim.aggregation, {"worst", "mean"});
 }
 
+// "world.density.regular" -> {"world", "density", "regular"}: a table's place in nested JSON.
+std::vector<std::string> table_path(const std::string& table) {
+  std::vector<std::string> parts;
+  size_t start = 0;
+  while (start <= table.size()) {
+    size_t dot = table.find('.', start);
+    if (dot == std::string::npos) dot = table.size();
+    parts.push_back(table.substr(start, dot - start));
+    start = dot + 1;
+  }
+  return parts;
+}
+
 // Reads each field from its table; tables are opened once, and checked for unknown keys
 // after every field was read.
 class Reader {
@@ -194,13 +207,7 @@ struct Writer {
   template <class T>
   void put(const std::string& table, const char* key, const T& x) {
     nlohmann::json* node = &out;
-    size_t start = 0;
-    while (start <= table.size()) {
-      size_t dot = table.find('.', start);
-      if (dot == std::string::npos) dot = table.size();
-      node = &(*node)[table.substr(start, dot - start)];
-      start = dot + 1;
-    }
+    for (const std::string& part : table_path(table)) node = &(*node)[part];
     (*node)[key] = x;
   }
   void number(const std::string& t, const char* k, const double& x, double, double) { put(t, k, x); }
@@ -256,14 +263,9 @@ class JsonReader {
  private:
   const nlohmann::json* find(const std::string& table, const char* key) const {
     const nlohmann::json* node = &root_;
-    size_t start = 0;
-    while (start <= table.size()) {
-      size_t dot = table.find('.', start);
-      if (dot == std::string::npos) dot = table.size();
-      const std::string part = table.substr(start, dot - start);
+    for (const std::string& part : table_path(table)) {
       if (!node->is_object() || !node->contains(part)) return nullptr;
       node = &(*node)[part];
-      start = dot + 1;
     }
     if (!node->is_object() || !node->contains(key)) return nullptr;
     return &(*node)[key];

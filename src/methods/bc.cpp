@@ -172,16 +172,9 @@ TrainSummary train_bc(const Settings& settings_in, const TrainRequest& req) {
   fs::create_directories(out);
   settle_pending_files(out, ck.epochs_done);
 
-  TrainSummary sum;
-  sum.method = req.method;
-  sum.out_dir = out;
-  sum.device = dev.name;
+  TrainSummary sum = train_summary(req, dev.name, ck.train_samples, ck.val_samples,
+                                   ck.train_episodes, ck.val_episodes);
   sum.resumed_from = ck.epochs_done;
-  sum.train_samples = ck.train_samples;
-  sum.val_samples = ck.val_samples;
-  sum.train_episodes = ck.train_episodes;
-  sum.val_episodes = ck.val_episodes;
-  sum.has_validation = ck.val_samples > 0;
 
   torch::manual_seed(s.train.seed);
   PolicyNet net(policy_net_options(s.model, data.input_channels(), eps.height, eps.width));
@@ -226,12 +219,6 @@ TrainSummary train_bc(const Settings& settings_in, const TrainRequest& req) {
 
   BcObjective objective(data, net, dev.device, s);
   const LoopTotals totals = train_epochs(objective, opt, plan, state, [&](const EpochResult& r) {
-    EpochMetrics m;
-    m.epoch = r.epoch;
-    m.train_loss = r.train_loss;
-    m.val_loss = r.val_loss;
-    m.lr = r.lr;
-    m.samples_per_s = r.samples_per_s;
     ck.best_epoch = state.best_epoch;
     ck.best_loss = state.best_loss;
     ck.bad_epochs = state.bad_epochs;
@@ -241,8 +228,7 @@ TrainSummary train_bc(const Settings& settings_in, const TrainRequest& req) {
     write_file_atomic(out + "/" + pending_name(kModelFile, r.epoch), model_bytes);
     if (r.improved) write_file_atomic(out + "/" + pending_name(kBestFile, r.epoch), model_bytes);
     write_file_atomic(out + "/" + pending_name(kOptimizerFile, r.epoch), to_bytes(opt));
-    m.seconds = r.seconds_since_start();
-    ck.metrics.push_back(m);
+    ck.metrics.push_back(r.metrics());
     ck.epochs_done = r.epoch;
     write_file_atomic(out + "/" + kCheckpointJson, checkpoint_to_json(ck).dump(2) + "\n");
     settle_pending_files(out, r.epoch);

@@ -359,11 +359,6 @@ json causes_json(const std::string& method, const CimSettings& cim, const CauseS
 
 // ---- stage predictor -----------------------------------------------------------------------
 
-struct PredictorResult {
-  json figures;
-  TrainSummary summary;
-};
-
 // The speed predictor's loss: the selected latents' last cim.history means -> speed[t+1].
 class PredictorObjective : public Objective {
  public:
@@ -410,7 +405,8 @@ class PredictorObjective : public Objective {
   torch::Tensor x_, y_;
 };
 
-PredictorResult train_predictor(const Settings& s, const std::string& method, const EpisodeSet& eps,
+// Trains the predictor into out/predictor.pt; returns the stage's figures for run.json.
+json train_predictor(const Settings& s, const std::string& method, const EpisodeSet& eps,
                                 const Encoded& enc, const std::vector<int>& selected,
                                 const std::string& init_predictor, const torch::Device& device,
                                 const std::string& out, bool quiet) {
@@ -483,30 +479,19 @@ PredictorResult train_predictor(const Settings& s, const std::string& method, co
   write_file_atomic(out + "/" + kCimPredictorFile, best_bytes);
   write_file_atomic(out + "/" + kCimPredictorMetrics, metrics);
 
-  PredictorResult r;
-  TrainSummary& sum = r.summary;
-  sum.epochs_done = s.cim.epochs;
-  sum.best_epoch = state.best_epoch;
-  sum.best_loss = state.best_loss;
-  sum.has_validation = !val.empty();
-  sum.train_samples = static_cast<long>(train.size());
-  sum.val_samples = static_cast<long>(val.size());
-  sum.val_episodes = static_cast<int>(val_eps.size());
-  sum.train_episodes = n_eps - sum.val_episodes;
-  sum.samples_per_s = totals.samples_per_s();
-  r.figures = {{"variables", V},
-               {"epochs", s.cim.epochs},
-               {"best_epoch", state.best_epoch},
-               {"best_loss", state.best_loss},
-               {"loss", s.train.loss},
-               {"has_validation", !val.empty()},
-               {"train_samples", sum.train_samples},
-               {"val_samples", sum.val_samples},
-               {"train_episodes", sum.train_episodes},
-               {"val_episodes", sum.val_episodes},
-               {"samples_per_s", sum.samples_per_s},
-               {"seconds", seconds_since(start)}};
-  return r;
+  const int val_episodes = static_cast<int>(val_eps.size());
+  return {{"variables", V},
+          {"epochs", s.cim.epochs},
+          {"best_epoch", state.best_epoch},
+          {"best_loss", state.best_loss},
+          {"loss", s.train.loss},
+          {"has_validation", !val.empty()},
+          {"train_samples", static_cast<long>(train.size())},
+          {"val_samples", static_cast<long>(val.size())},
+          {"train_episodes", n_eps - val_episodes},
+          {"val_episodes", val_episodes},
+          {"samples_per_s", totals.samples_per_s()},
+          {"seconds", seconds_since(start)}};
 }
 
 // The traversal's base frame: the first frame with a leader within 20 m, else the first with
@@ -693,31 +678,28 @@ TrainSummary train_cim(const Settings& settings_in, const TrainRequest& req) {
   const json causes = json::parse(read_file_bytes(out + "/" + kCimCausesJson));
   const std::vector<int> selected = causes.at("selected").get<std::vector<int>>();
 
-  TrainSummary sum;
-  sum.method = req.method;
-  sum.out_dir = out;
-  sum.device = device_name;
-  sum.weights_file = kCimPredictorFile;
-  if (!done("predictor")) {
+  double samples_per_s = 0;
+  const bool predictor_done_before = done("predictor");
+  if (!predictor_done_before) {
     const std::string init_bytes =
         init_run ? read_file_bytes(init_run->dir + "/" + kCimPredictorFile) : std::string();
-    PredictorResult r = train_predictor(s, req.method, eps, encoded(), selected, init_bytes, device,
-                                        out, req.quiet);
-    if (init_run) r.figures["init"] = init_run->dir;
-    commit("predictor", r.figures);
-    sum.samples_per_s = r.summary.samples_per_s;
-  } else {
-    sum.resumed_from = s.cim.epochs;
+    json figures = train_predictor(s, req.method, eps, encoded(), selected, init_bytes, device,
+                                   out, req.quiet);
+    samples_per_s = figures.at("samples_per_s").get<double>();
+    if (init_run) figures["init"] = init_run->dir;
+    commit("predictor", figures);
   }
   const json& pf = record["figures"]["predictor"];
+  TrainSummary sum = train_summary(req, device_name, pf.at("train_samples").get<long>(),
+                                   pf.at("val_samples").get<long>(),
+                                   pf.at("train_episodes").get<int>(),
+                                   pf.at("val_episodes").get<int>());
+  sum.weights_file = kCimPredictorFile;
+  sum.samples_per_s = samples_per_s;
+  if (predictor_done_before) sum.resumed_from = s.cim.epochs;
   sum.epochs_done = pf.at("epochs").get<int>();
   sum.best_epoch = pf.at("best_epoch").get<int>();
   sum.best_loss = pf.at("best_loss").get<double>();
-  sum.has_validation = pf.at("has_validation").get<bool>();
-  sum.train_samples = pf.at("train_samples").get<long>();
-  sum.val_samples = pf.at("val_samples").get<long>();
-  sum.train_episodes = pf.at("train_episodes").get<int>();
-  sum.val_episodes = pf.at("val_episodes").get<int>();
   say(req.quiet, "  predictor: " + std::to_string(selected.size()) + " input variable(s), best epoch " +
                      std::to_string(sum.best_epoch) + ", " + (sum.has_validation ? "validation" : "training") +
                      " " + s.train.loss + " loss " + fmt("%.4f", sum.best_loss) + " m/s -> " + out +

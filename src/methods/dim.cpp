@@ -205,15 +205,8 @@ TrainSummary train_dim(const Settings& settings_in, const TrainRequest& req) {
   }
   run.device = dev.name;
 
-  TrainSummary sum;
-  sum.method = req.method;
-  sum.out_dir = out;
-  sum.device = dev.name;
-  sum.train_samples = run.train_samples;
-  sum.val_samples = run.val_samples;
-  sum.train_episodes = run.train_episodes;
-  sum.val_episodes = run.val_episodes;
-  sum.has_validation = run.val_samples > 0;
+  TrainSummary sum = train_summary(req, dev.name, run.train_samples, run.val_samples,
+                                   run.train_episodes, run.val_episodes);
   sum.weights_file = run.members.size() > 1 ? "member_*.pt" : dim_member_file(0);
   for (const DimMember& m : run.members)
     if (m.finished) sum.resumed_from += static_cast<int>(m.metrics.size());
@@ -267,13 +260,8 @@ TrainSummary train_dim(const Settings& settings_in, const TrainRequest& req) {
     DimObjective objective(eps, d, train, samples.val, net, dev.device, s.train.batch_size);
     const LoopTotals t = train_epochs(objective, opt, plan, state, [&](const EpochResult& r) {
       DimEpochMetrics em;
+      static_cast<EpochMetrics&>(em) = r.metrics();
       em.member = m.index;
-      em.epoch = r.epoch;
-      em.train_nll = r.train_loss;
-      em.val_nll = r.val_loss;
-      em.lr = r.lr;
-      em.samples_per_s = r.samples_per_s;
-      em.seconds = r.seconds_since_start();
       m.metrics.push_back(em);
       if (r.improved) {
         net->to(torch::kCPU);
@@ -283,7 +271,7 @@ TrainSummary train_dim(const Settings& settings_in, const TrainRequest& req) {
       char line[200];
       std::snprintf(line, sizeof line,
                     "%s member %d/%d epoch %d/%d: train nll %.4f, val nll %s, %.0f samples/s",
-                    req.method.c_str(), m.index + 1, d.ensemble, r.epoch, epochs, em.train_nll,
+                    req.method.c_str(), m.index + 1, d.ensemble, r.epoch, epochs, em.train_loss,
                     r.val_loss ? std::to_string(*r.val_loss).c_str() : "-", em.samples_per_s);
       if (!req.quiet) log_line(line);
     });

@@ -14,25 +14,9 @@ namespace cd {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-namespace {
-
-json metrics_json(const EpochMetrics& m) {
-  json j = {{"epoch", m.epoch},
-            {"train_loss", m.train_loss},
-            {"val_loss", nullptr},
-            {"lr", m.lr},
-            {"seconds", m.seconds},
-            {"samples_per_s", m.samples_per_s}};
-  if (m.val_loss) j["val_loss"] = *m.val_loss;
-  return j;
-}
-
-
-}  // namespace
-
 json checkpoint_to_json(const Checkpoint& c) {
   json metrics = json::array();
-  for (const auto& m : c.metrics) metrics.push_back(metrics_json(m));
+  for (const auto& m : c.metrics) metrics.push_back(epoch_metrics_json(m, "loss"));
   return {
       {"format", "causaldrive-checkpoint"},
       {"version", kCheckpointVersion},
@@ -98,15 +82,7 @@ Checkpoint checkpoint_from_json(const json& j, const std::string& where) {
   const json& metrics = f.at("metrics");
   if (!metrics.is_array()) throw DataError(where + ": 'metrics' is not an array");
   for (const json& mj : metrics) {
-    JsonFields mf{mj, where};
-    EpochMetrics m;
-    m.epoch = mf.get<int>("epoch");
-    m.train_loss = mf.get<double>("train_loss");
-    if (!mf.at("val_loss").is_null()) m.val_loss = mf.get<double>("val_loss");
-    m.lr = mf.get<double>("lr");
-    m.seconds = mf.get<double>("seconds");
-    m.samples_per_s = mf.get<double>("samples_per_s");
-    c.metrics.push_back(m);
+    c.metrics.push_back(epoch_metrics_from_json(mj, "loss", where));
   }
   if (static_cast<int>(c.metrics.size()) != c.epochs_done)
     throw DataError(where + ": " + std::to_string(c.metrics.size()) + " metric lines for " +
@@ -143,7 +119,7 @@ Checkpoint require_checkpoint(const std::string& dir) {
 
 std::string metrics_jsonl(const Checkpoint& c) {
   std::string out;
-  for (const auto& m : c.metrics) out += metrics_json(m).dump() + "\n";
+  for (const auto& m : c.metrics) out += epoch_metrics_json(m, "loss").dump() + "\n";
   return out;
 }
 

@@ -20,6 +20,7 @@
 #include <nlohmann/json.hpp>
 
 #include "app/settings.hpp"
+#include "runs/record.hpp"
 
 namespace cd {
 
@@ -29,15 +30,6 @@ inline constexpr const char* kModelFile = "model.pt";
 inline constexpr const char* kBestFile = "best.pt";
 inline constexpr const char* kOptimizerFile = "optimizer.pt";
 inline constexpr int kCheckpointVersion = 1;
-
-struct EpochMetrics {
-  int epoch = 0;  // 1-based
-  double train_loss = 0;
-  std::optional<double> val_loss;  // none without validation episodes
-  double lr = 0;                   // the learning rate the epoch trained with
-  double seconds = 0;
-  double samples_per_s = 0;        // training samples per second of the training pass
-};
 
 // What the network reads, fixed by the data it was trained on.
 struct InputFormat {

@@ -16,11 +16,8 @@ namespace {
 
 
 json epoch_json(const DimEpochMetrics& m) {
-  json j = {{"member", m.member},       {"epoch", m.epoch},
-            {"train_nll", m.train_nll}, {"val_nll", nullptr},
-            {"lr", m.lr},               {"seconds", m.seconds},
-            {"samples_per_s", m.samples_per_s}};
-  if (m.val_nll) j["val_nll"] = *m.val_nll;
+  json j = epoch_metrics_json(m, "nll");
+  j["member"] = m.member;
   return j;
 }
 
@@ -109,15 +106,9 @@ DimRun dim_run_from_json(const json& j, const std::string& where) {
     const json& metrics = m.at("metrics");
     if (!metrics.is_array()) throw DataError(where + ": a member's 'metrics' is not an array");
     for (const json& ej : metrics) {
-      JsonFields e{ej, where};
       DimEpochMetrics em;
-      em.member = e.get<int>("member");
-      em.epoch = e.get<int>("epoch");
-      em.train_nll = e.get<double>("train_nll");
-      if (!e.at("val_nll").is_null()) em.val_nll = e.get<double>("val_nll");
-      em.lr = e.get<double>("lr");
-      em.seconds = e.get<double>("seconds");
-      em.samples_per_s = e.get<double>("samples_per_s");
+      static_cast<EpochMetrics&>(em) = epoch_metrics_from_json(ej, "nll", where);
+      em.member = JsonFields{ej, where}.get<int>("member");
       d.metrics.push_back(em);
     }
     if (d.index != static_cast<int>(r.members.size()))

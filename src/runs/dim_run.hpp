@@ -27,11 +27,10 @@ inline constexpr const char* kDimJson = "dim.json";
 inline constexpr int kDimRunVersion = 1;
 std::string dim_member_file(int member);  // "member_<k>.pt"
 
-struct DimEpochMetrics {
-  int member = 0, epoch = 0;  // epoch is 1-based
-  double train_nll = 0;       // mean negative log-likelihood per sample (nats)
-  std::optional<double> val_nll;
-  double lr = 0, seconds = 0, samples_per_s = 0;
+// An epoch of a member; its losses are mean negative log-likelihoods per sample (nats), kept as
+// train_nll and val_nll in the record.
+struct DimEpochMetrics : EpochMetrics {
+  int member = 0;
 };
 
 struct DimMember {

@@ -84,6 +84,31 @@ void refuse_other_run(const RunIdentity& stored, const RunIdentity& now, const s
                       ": train into another --out folder");
 }
 
+json epoch_metrics_json(const EpochMetrics& m, const std::string& loss) {
+  json j = {{"epoch", m.epoch},
+            {"train_" + loss, m.train_loss},
+            {"val_" + loss, nullptr},
+            {"lr", m.lr},
+            {"seconds", m.seconds},
+            {"samples_per_s", m.samples_per_s}};
+  if (m.val_loss) j["val_" + loss] = *m.val_loss;
+  return j;
+}
+
+EpochMetrics epoch_metrics_from_json(const json& j, const std::string& loss,
+                                     const std::string& where) {
+  JsonFields f{j, where};
+  const std::string train_key = "train_" + loss, val_key = "val_" + loss;
+  EpochMetrics m;
+  m.epoch = f.get<int>("epoch");
+  m.train_loss = f.get<double>(train_key.c_str());
+  if (!f.at(val_key.c_str()).is_null()) m.val_loss = f.get<double>(val_key.c_str());
+  m.lr = f.get<double>("lr");
+  m.seconds = f.get<double>("seconds");
+  m.samples_per_s = f.get<double>("samples_per_s");
+  return m;
+}
+
 json json_number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
 }  // namespace cd

@@ -2,6 +2,7 @@
 // What every run record (checkpoint.json, dim.json, run.json) shares: typed JSON access with
 // one-line errors, the refusal of a folder that holds another run, and path and number forms.
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -39,6 +40,22 @@ std::string settings_diff(const nlohmann::json& stored, const nlohmann::json& no
 // The absolute, normalised form of a folder path (as given when it cannot be resolved; "" stays
 // ""): how run records name their data and init folders.
 std::string canonical_dir(const std::string& dir);
+
+// One finished epoch of a trainer (train/loop.hpp), as run records keep it.
+struct EpochMetrics {
+  int epoch = 0;  // 1-based
+  double train_loss = 0;
+  std::optional<double> val_loss;  // none without validation episodes
+  double lr = 0;                   // the learning rate the epoch trained with
+  double seconds = 0;
+  double samples_per_s = 0;        // training samples per second of the training pass
+};
+
+// Its JSON form, the loss named `loss` ("train_<loss>", "val_<loss>": null without
+// validation), and back (DataError naming `where`).
+nlohmann::json epoch_metrics_json(const EpochMetrics& m, const std::string& loss);
+EpochMetrics epoch_metrics_from_json(const nlohmann::json& j, const std::string& loss,
+                                     const std::string& where);
 
 // Who trained a run folder, as far as a resume must agree with it.
 struct RunIdentity {

@@ -23,6 +23,17 @@ double seconds_since(Clock::time_point t) {
 
 double EpochResult::seconds_since_start() const { return seconds_since(started); }
 
+EpochMetrics EpochResult::metrics() const {
+  EpochMetrics m;
+  m.epoch = epoch;
+  m.train_loss = train_loss;
+  m.val_loss = val_loss;
+  m.lr = lr;
+  m.samples_per_s = samples_per_s;
+  m.seconds = seconds_since_start();
+  return m;
+}
+
 BatchLoss Objective::update(const uint32_t* rows, int64_t n, torch::optim::Optimizer& opt,
                             double clip_grad_norm) {
   BatchLoss b = loss(true, rows, n);
@@ -42,19 +53,6 @@ std::string epoch_note(int epoch, int epochs, const char* what, double value, in
   char note[96];
   std::snprintf(note, sizeof note, "epoch %d/%d %s %.*f", epoch, epochs, what, digits, value);
   return note;
-}
-
-std::string resolve_device(const std::string& wanted) {
-  if (wanted == "cpu") return "cpu";
-  bool cuda = torch::cuda::is_available();
-  if (wanted == "auto") return cuda ? "cuda" : "cpu";
-  if (wanted == "cuda") {
-    if (!cuda)
-      throw ConfigError("train.device = \"cuda\" but no CUDA device is usable (this libtorch "
-                        "build or machine has none); use \"cpu\" or \"auto\"");
-    return "cuda";
-  }
-  throw ConfigError("train.device must be cpu, cuda or auto (got '" + wanted + "')");
 }
 
 TrainingDevice training_device(const std::string& wanted, int threads) {

@@ -16,6 +16,8 @@
 
 #include <torch/torch.h>
 
+#include "runs/record.hpp"
+
 namespace cd {
 
 class Progress;
@@ -77,6 +79,8 @@ struct EpochResult {
   std::chrono::steady_clock::time_point started;
   double selection() const { return val_loss.value_or(train_loss); }
   double seconds_since_start() const;
+  // What run records keep of it; seconds counts from its start to now (the commit included).
+  EpochMetrics metrics() const;
 };
 
 struct LoopTotals {

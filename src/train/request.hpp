@@ -30,6 +30,12 @@ struct TrainSummary {
   std::string weights_file;  // what agents load, inside out_dir (empty: best.pt)
 };
 
+// A summary's head: the request's method and folder, the device, the split sizes (has_validation
+// follows val_samples).
+TrainSummary train_summary(const TrainRequest& request, const std::string& device,
+                           long train_samples, long val_samples, int train_episodes,
+                           int val_episodes);
+
 // The device train.device names: "cpu", or "cuda" (ConfigError when none is usable).
 std::string resolve_device(const std::string& wanted);
 

@@ -183,10 +183,10 @@ TEST_F(DimTest, NllDecreasesOnAToySet) {
   ASSERT_EQ(run.members.size(), 1u);
   const auto& m = run.members[0].metrics;
   ASSERT_EQ(m.size(), 5u);
-  EXPECT_LT(m.back().train_nll, m.front().train_nll - 1.0);
-  ASSERT_TRUE(m.front().val_nll && m.back().val_nll);
-  EXPECT_LT(*m.back().val_nll, *m.front().val_nll);
-  EXPECT_EQ(run.members[0].best_nll, *m[run.members[0].best_epoch - 1].val_nll);
+  EXPECT_LT(m.back().train_loss, m.front().train_loss - 1.0);
+  ASSERT_TRUE(m.front().val_loss && m.back().val_loss);
+  EXPECT_LT(*m.back().val_loss, *m.front().val_loss);
+  EXPECT_EQ(run.members[0].best_nll, *m[run.members[0].best_epoch - 1].val_loss);
   // The learned density prefers the recorded future to a clearly wrong one.
   std::vector<DimNet> nets = load_members(dir / "run");
   torch::NoGradGuard no_grad;

@@ -1,0 +1,37 @@
+#include "train/request.hpp"
+
+#include <torch/cuda.h>
+
+#include "core/error.hpp"
+
+namespace cd {
+
+TrainSummary train_summary(const TrainRequest& request, const std::string& device,
+                           long train_samples, long val_samples, int train_episodes,
+                           int val_episodes) {
+  TrainSummary s;
+  s.method = request.method;
+  s.out_dir = request.out_dir;
+  s.device = device;
+  s.train_samples = train_samples;
+  s.val_samples = val_samples;
+  s.train_episodes = train_episodes;
+  s.val_episodes = val_episodes;
+  s.has_validation = val_samples > 0;
+  return s;
+}
+
+std::string resolve_device(const std::string& wanted) {
+  if (wanted == "cpu") return "cpu";
+  bool cuda = torch::cuda::is_available();
+  if (wanted == "auto") return cuda ? "cuda" : "cpu";
+  if (wanted == "cuda") {
+    if (!cuda)
+      throw ConfigError("train.device = \"cuda\" but no CUDA device is usable (this libtorch "
+                        "build or machine has none); use \"cpu\" or \"auto\"");
+    return "cuda";
+  }
+  throw ConfigError("train.device must be cpu, cuda or auto (got '" + wanted + "')");
+}
+
+}  // namespace cd
