@@ -25,6 +25,11 @@ void visit_settings(S& st, V&& v) {
   v.number("world", "view_radius", st.world.view_radius, 10, 500);
   v.number("world", "command_horizon", st.world.command_horizon, 0, 500);
   v.number("world", "path_free_margin", st.world.path_free_margin, 0, 100);
+  v.number("world", "path_free_decel", st.world.path_free_decel, 0.5, 10);
+  v.number("world", "vehicle_margin", st.world.vehicle_margin, 0, 5);
+  v.number("world", "ped_margin", st.world.ped_margin, 0, 5);
+  v.number("world", "ped_lookahead_s", st.world.ped_lookahead_s, 0, 10);
+  v.number("world", "yield_time", st.world.yield_time, 0, 30);
   auto density = [&](const char* table, auto& d) {
     v.number(table, "cars_per_km", d.cars_per_km, 0, 200);
     v.number(table, "peds_per_km", d.peds_per_km, 0, 200);
@@ -55,10 +60,6 @@ void visit_settings(S& st, V&& v) {
   v.number("expert", "min_gap", st.expert.min_gap, 0.5, 20);
   v.number("expert", "headway", st.expert.headway, 0.1, 5);
   v.number("expert", "stop_margin", st.expert.stop_margin, 0, 10);
-  v.number("expert", "yield_time", st.expert.yield_time, 0, 30);
-  v.number("expert", "vehicle_margin", st.expert.vehicle_margin, 0, 5);
-  v.number("expert", "ped_margin", st.expert.ped_margin, 0, 5);
-  v.number("expert", "ped_lookahead_s", st.expert.ped_lookahead_s, 0, 10);
   v.number("expert", "gain", st.expert.gain, 0.1, 20);
 
   v.integer("collect", "episodes", st.collect.episodes, 1, 1000000);
@@ -299,13 +300,6 @@ Settings load_settings(const std::string& path) {
   if (st.collect.noise.max_s < st.collect.noise.min_s)
     throw ConfigError(path + ": collect.noise.max_s must be >= collect.noise.min_s");
   return st;
-}
-
-const TrafficDensity& traffic_density(const WorldSettings& w) {
-  static const TrafficDensity none{};
-  if (w.traffic == "regular") return w.regular;
-  if (w.traffic == "dense") return w.dense;
-  return none;
 }
 
 nlohmann::json settings_to_json(const Settings& s) {

@@ -9,25 +9,12 @@
 #include <nlohmann/json_fwd.hpp>
 
 #include "control/pid.hpp"
+#include "expert/expert_settings.hpp"
 #include "nn/model_settings.hpp"
 #include "sense/bev.hpp"
 #include "world/world_settings.hpp"
 
 namespace cd {
-
-struct ExpertSettings {
-  double cruise_speed = 10.0;   // m/s, never above the lane's limit
-  double turn_speed = 5.0;      // m/s through turns
-  double comfort_decel = 3.0;   // m/s^2, planned braking
-  double min_gap = 3.5;         // m, standstill gap to the leader
-  double headway = 1.2;         // s
-  double stop_margin = 1.0;     // m before a stop line
-  double yield_time = 5.0;      // s, priority traffic closer than this in time is waited for
-  double vehicle_margin = 0.4;  // m beside the ego's body within which a car is in the way
-  double ped_margin = 0.8;      // m beside the ego's body within which a pedestrian is
-  double ped_lookahead_s = 1.5; // s, pedestrians are also checked where they will be
-  double gain = 2.0;            // 1/s, speed tracking gain
-};
 
 struct NoiseSettings {
   bool enabled = false;
@@ -90,11 +77,8 @@ struct CimSettings {
   double lr = 1e-3;
 };
 
-struct Settings {
+struct Settings : WorldConfig {  // world, ego, bev
   std::string source = "(built-in defaults)";  // where they came from
-  WorldSettings world;
-  EgoSettings ego;
-  BevConfig bev;
   ExpertSettings expert;
   CollectSettings collect;
   ControlSettings control;
@@ -111,6 +95,5 @@ nlohmann::json settings_to_json(const Settings& s);
 // The inverse of settings_to_json, for run records: same keys and ranges as a config; missing
 // keys keep their defaults; DataError naming `where` and the key otherwise.
 Settings settings_from_json(const nlohmann::json& j, const std::string& where);
-const TrafficDensity& traffic_density(const WorldSettings& w);
 
 }  // namespace cd

@@ -1,7 +1,6 @@
 #include "collect/expert_episode.hpp"
 
 #include <cstdio>
-#include <iterator>
 #include <filesystem>
 
 #include "core/rng.hpp"
@@ -11,33 +10,20 @@ namespace cd {
 
 namespace {
 
-constexpr double kAbsentDistance = 100.0;  // m recorded when there is no leader, light, ...
-
-// Appends the ground-truth causes of the current state, one value per series. The values
-// are listed in the order of cause_names(), which is alphabetical like d.causes.
+// Appends the ground-truth causes of the current state, one value per series of the schema.
 void record_causes(const GroundTruth& gt, EpisodeData& d) {
-  const double values[] = {
-      gt.junction_distance,
-      gt.lead_present ? gt.lead_distance : kAbsentDistance,
-      double(gt.lead_present),
-      gt.lead_present ? gt.lead_speed : 0.0,
-      double(gt.must_yield),
-      double(gt.path_free),
-      gt.ped_on_path ? gt.ped_distance : kAbsentDistance,
-      double(gt.ped_on_path),
-      gt.tl_state != kTlNone ? gt.tl_distance : kAbsentDistance,
-      double(gt.tl_state)};
-  static_assert(std::size(values) == 10);
-  size_t i = 0;
-  for (auto& [name, series] : d.causes) series.push_back(static_cast<float>(values[i++]));
+  for (const CauseSeries& c : cause_schema())
+    d.causes[c.name].push_back(static_cast<float>(c.value(gt)));
 }
 
 }  // namespace
 
 const std::vector<std::string>& cause_names() {
-  static const std::vector<std::string> names = {
-      "junction_distance", "lead_distance", "lead_present", "lead_speed", "must_yield",
-      "path_free",         "ped_distance",  "ped_on_path",  "tl_distance", "tl_state"};
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> v;
+    for (const CauseSeries& c : cause_schema()) v.push_back(c.name);
+    return v;
+  }();
   return names;
 }
 

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <string>
 
+#include "app/settings.hpp"
 #include "data/episode.hpp"
 #include "expert/autopilot.hpp"
 #include "world/world.hpp"

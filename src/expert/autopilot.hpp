@@ -2,6 +2,7 @@
 // The expert: a rule-based autopilot with privileged state. It can be asked for its action at
 // any state of the ego (DAgger relabelling, noise injection): it reads only the World's
 // current ground truth, never its own history.
+#include "expert/expert_settings.hpp"
 #include "world/world.hpp"
 
 namespace cd {

@@ -2,6 +2,8 @@
 // The settings of the driving world and of the ego's vehicle model ([world], [ego]).
 #include <string>
 
+#include "sense/bev.hpp"
+
 namespace cd {
 
 struct TrafficDensity {
@@ -18,7 +20,14 @@ struct WorldSettings {
   TrafficDensity dense{9.0, 8.0};
   double view_radius = 60;      // m, actors farther than this are not sensed or checked
   double command_horizon = 30;  // m, the junction command is given this far ahead
+  // What the ground truth counts as in the ego's way (world/ground_truth.hpp). These define
+  // "path free", hence inertia: they belong to the benchmark, never to the expert's tuning.
   double path_free_margin = 6;  // m checked beyond the stopping distance for "path free"
+  double path_free_decel = 3.0; // m/s^2 of that stopping distance
+  double vehicle_margin = 0.4;  // m beside the ego's body within which a car is in the way
+  double ped_margin = 0.8;      // m beside the ego's body within which a pedestrian is
+  double ped_lookahead_s = 1.5; // s, pedestrians are also checked where they will be
+  double yield_time = 5.0;      // s, priority traffic closer than this in time is waited for
 };
 
 // Longitudinal vehicle model of the ego: a = throttle * max_accel * (1 - v / max_speed)
@@ -31,6 +40,21 @@ struct EgoSettings {
   double max_speed = 20.0;  // m/s
   double rolling = 0.1;     // m/s^2, when moving
   double drag = 0.0008;     // 1/m
+};
+
+// The density of world.traffic (none for "empty").
+inline TrafficDensity traffic_density(const WorldSettings& w) {
+  if (w.traffic == "regular") return w.regular;
+  if (w.traffic == "dense") return w.dense;
+  return {};
+}
+
+// What a World is built from: the [world], [ego] and [bev] tables (app/settings.hpp's Settings
+// holds them as its base).
+struct WorldConfig {
+  WorldSettings world;
+  EgoSettings ego;
+  BevConfig bev;
 };
 
 }  // namespace cd

@@ -1,0 +1,105 @@
+#include "world/route_path.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace cd {
+
+RoutePath trace_route_path(const RoadNetwork& net, const std::vector<std::string>& route,
+                           const LanePlan& plan, const std::string& start_lane, double lane_pos,
+                           double horizon) {
+  RoutePath path;
+  std::string lane = start_lane;
+  double from = lane_pos, s = 0;
+  size_t k = 0;
+  while (!lane.empty() && s < horizon) {
+    const LaneGeom* g = net.map.find(lane);
+    if (!g) break;
+    path.lanes.push_back({g, from, s});
+    if (!g->internal && g->edge == route.back()) break;  // the goal lies on this lane
+    s += std::max(0.0, g->length - from);
+    from = 0;
+    lane = net.lane_after(route, plan, lane, k);
+  }
+  for (const PathLane& pl : path.lanes)
+    for (const Vec2& q : pl.lane->shape) {
+      path.min = {std::min(path.min.x, q.x), std::min(path.min.y, q.y)};
+      path.max = {std::max(path.max.x, q.x), std::max(path.max.y, q.y)};
+    }
+  return path;
+}
+
+Vec2 RoutePath::point(double s, Vec2 origin) const {
+  Vec2 last = origin;
+  for (const PathLane& pl : lanes) {
+    const Polyline& shape = pl.lane->shape;
+    double arc = 0;
+    for (size_t i = 1; i < shape.size(); ++i) {
+      Vec2 a = shape[i - 1], d = shape[i] - a;
+      double len = d.norm();
+      if (len < 1e-9) continue;
+      double lo = std::max(arc, pl.from_pos), hi = arc + len;
+      if (hi > lo) {
+        double s_lo = pl.s_begin + lo - pl.from_pos, s_hi = pl.s_begin + hi - pl.from_pos;
+        if (s <= s_hi) return a + d * ((std::max(s, s_lo) - pl.s_begin + pl.from_pos - arc) / len);
+        last = shape[i];
+      }
+      arc = hi;
+    }
+  }
+  return last;
+}
+
+bool RoutePath::locate(Vec2 p, double half_width, double* s_out) const {
+  if (p.x < min.x - half_width || p.x > max.x + half_width || p.y < min.y - half_width ||
+      p.y > max.y + half_width)
+    return false;
+  double best = 1e300;
+  for (const PathLane& pl : lanes) {
+    const Polyline& shape = pl.lane->shape;
+    double arc = 0;
+    for (size_t i = 1; i < shape.size(); ++i) {
+      Vec2 a = shape[i - 1], d = shape[i] - a;
+      double len = d.norm();
+      if (len < 1e-9) continue;
+      Vec2 u = d * (1.0 / len);
+      double along = (p - a).dot(u);
+      double lat = std::abs((p - a).cross(u));
+      if (along >= -0.5 && along <= len + 0.5 && lat <= half_width) {
+        double lane_pos = arc + std::clamp(along, 0.0, len);
+        if (lane_pos >= pl.from_pos - 0.01) best = std::min(best, pl.s_begin + lane_pos - pl.from_pos);
+      }
+      arc += len;
+    }
+    if (best < 1e300) break;  // later lanes are farther along the path
+  }
+  if (best >= 1e300) return false;
+  *s_out = best;
+  return true;
+}
+
+std::optional<std::pair<Vec2, Vec2>> RoutePath::line_across(double s) const {
+  for (const PathLane& pl : lanes) {
+    double end = pl.s_begin + pl.lane->length - pl.from_pos;
+    if (s > end + 1e-6) continue;
+    const Polyline& shape = pl.lane->shape;
+    double target = pl.from_pos + (s - pl.s_begin), arc = 0;
+    for (size_t i = 1; i < shape.size(); ++i) {
+      Vec2 dv = shape[i] - shape[i - 1];
+      double len = dv.norm();
+      if (len < 1e-9) continue;
+      if (arc + len >= target - 1e-6 || i + 1 == shape.size()) {
+        Vec2 u = dv * (1.0 / len);
+        Vec2 p = shape[i - 1] + u * std::clamp(target - arc, 0.0, len);
+        Vec2 n{-u.y, u.x};
+        double hw = pl.lane->width / 2;
+        return std::make_pair(p + n * hw, p - n * hw);
+      }
+      arc += len;
+    }
+    return std::nullopt;
+  }
+  return std::nullopt;
+}
+
+}  // namespace cd
