@@ -14,7 +14,7 @@
 
 namespace cd {
 
-class World;
+class World;  // what the privileged expert drives in (methods/expert.cpp)
 
 struct Observation {
   std::vector<const uint8_t*> frames;  // oldest first, last = current; each C*H*W bytes, 0/255
@@ -39,9 +39,9 @@ class Agent {
   virtual bool uses_frames() const { return true; }  // false: the runner renders nothing
   virtual double goal_distance() const { return 0; }  // > 0: fill Observation::goal_x/y
   virtual void begin_episode() {}
-  // The control for this step. `world` is there for the privileged agents (expert, cs);
-  // learned agents must use `obs` only.
-  virtual Control act(const Observation& obs, const World& world) = 0;
+  // The control for this step, from the observation alone (the expert was given its World
+  // when it was built: it is the only privileged agent).
+  virtual Control act(const Observation& obs) = 0;
   // The target speed behind the last act() (NaN when the agent outputs throttle/brake).
   virtual double last_target_speed() const { return std::nan(""); }
 };

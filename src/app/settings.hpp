@@ -78,6 +78,7 @@ struct CimSettings {
 };
 
 struct Settings : WorldConfig {  // world, ego, bev
+  Settings() = default;  // not an aggregate: Settings{} is the defaults
   std::string source = "(built-in defaults)";  // where they came from
   ExpertSettings expert;
   CollectSettings collect;

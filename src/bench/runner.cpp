@@ -131,18 +131,22 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
       obs.goal_x = g.x;
       obs.goal_y = g.y;
     }
-    Control c = agent.act(obs, world);
+    Control c = agent.act(obs);
     if (trace_csv) {
-      const GroundTruth& gt = world.truth();
-      char line[256];
-      std::snprintf(line, sizeof line, "%.1f,%.3f,%d,%d,%.2f,%.2f,%d,%.3f,%.3f,%.3f\n",
-                    world.time(), world.ego().speed, int(gt.path_free), gt.tl_state,
-                    gt.tl_state ? gt.tl_distance : -1.0, gt.lead_present ? gt.lead_distance : -1.0,
-                    obs.command, c.throttle, c.brake, agent.last_target_speed());
-      if (trace_csv->empty())
-        *trace_csv = "time_s,speed,path_free,tl_state,tl_distance,lead_distance,command,"
-                     "throttle,brake,target_speed\n";
-      *trace_csv += line;
+      if (trace_csv->empty()) {
+        *trace_csv = "time_s,speed,command,throttle,brake,target_speed";
+        for (const CauseSeries& cs : cause_schema()) *trace_csv += std::string(",") + cs.name;
+        *trace_csv += "\n";
+      }
+      char field[64];
+      std::snprintf(field, sizeof field, "%.1f,%.3f,%d,%.3f,%.3f,%.3f", world.time(),
+                    world.ego().speed, obs.command, c.throttle, c.brake, agent.last_target_speed());
+      *trace_csv += field;
+      for (const CauseSeries& cs : cause_schema()) {
+        std::snprintf(field, sizeof field, ",%.6g", cs.value(world.truth()));
+        *trace_csv += field;
+      }
+      *trace_csv += "\n";
     }
     sr = world.step(c);
     ++n;
@@ -242,7 +246,7 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
   auto job = [&](int i) {
     inject_crash(i, out);
     // The agent is made after the fork: each episode starts from the same agent state.
-    auto agent = make_agent(req.agent, req.checkpoint, settings);
+    auto agent = make_agent(req.agent, req.checkpoint, settings, world.get());
     LoopStats stats;
     std::string trace;
     EpisodeResult r = run_episode(*world, *agent, task_of(i), settings, &stats,

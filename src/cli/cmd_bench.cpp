@@ -119,7 +119,7 @@ void bench_eval(Settings s, const std::string& agent_name, const std::string& ch
   World world(s);
   auto episode = [&](const std::string& name, const std::string& ckpt, int i) {
     LoopStats stats;
-    auto agent = make_agent(name, ckpt, s);
+    auto agent = make_agent(name, ckpt, s, &world);
     run_episode(world, *agent, suite.tasks[static_cast<size_t>(i) % suite.tasks.size()], s,
                 &stats);
     return stats;

@@ -3,7 +3,15 @@
 #include <algorithm>
 #include <cmath>
 
+#include "world/ground_truth.hpp"
+
 namespace cd {
+
+namespace {
+// The analysis view of the recorded causes (datasets/ground_truth.hpp).
+constexpr double kLeadDistanceCap = 60.0;  // m: no leader reads as one this far away
+constexpr double kRedLightNear = 30.0;     // m: a red or yellow light nearer than this counts
+}  // namespace
 
 const std::vector<std::string>& ground_truth_names() {
   static const std::vector<std::string> names = {"lead_distance", "lead_present", "red_light",
@@ -22,16 +30,16 @@ double ground_truth_value(const PackedEpisode& ep, const std::string& name, int 
     const auto* d = get("lead_distance");
     const auto* present = get("lead_present");
     if (!d) return nan;
-    if (present && (*present)[t] == 0) return 60.0;
+    if (present && (*present)[t] == 0) return kLeadDistanceCap;
     double v = (*d)[t];
-    return std::isfinite(v) ? std::min(v, 60.0) : 60.0;
+    return std::isfinite(v) ? std::min(v, kLeadDistanceCap) : kLeadDistanceCap;
   }
   if (name == "red_light") {
     const auto* s = get("tl_state");
     const auto* d = get("tl_distance");
     if (!s || !d) return nan;
     const int state = static_cast<int>(std::lround((*s)[t]));
-    return (state == 1 || state == 2) && (*d)[t] < 30 ? 1.0 : 0.0;
+    return (state == kTlRed || state == kTlYellow) && (*d)[t] < kRedLightNear ? 1.0 : 0.0;
   }
   if (name == "path_free") {
     const auto* v = get("path_free");

@@ -265,7 +265,7 @@ class BcAgent : public Agent {
     target_ = std::nan("");
   }
 
-  Control act(const Observation& obs, const World&) override {
+  Control act(const Observation& obs) override {
     const InputFormat& in = runner_.checkpoint().input;
     check_observation(method_, obs, in.channels, in.height, in.width, in.history);
     PolicyStep step = runner_.run(obs.frames.data(), obs.speed, obs.command);
@@ -288,7 +288,7 @@ class BcAgent : public Agent {
 }  // namespace
 
 std::unique_ptr<Agent> load_bc_agent(const std::string& method, const std::string& dir,
-                                     const Settings& settings) {
+                                     const Settings& settings, const World*) {
   set_torch_threads(1);
   return std::make_unique<BcAgent>(method, dir, settings);
 }

@@ -781,7 +781,7 @@ class CimAgent : public Agent {
     cache_.clear();
   }
 
-  Control act(const Observation& obs, const World&) override {
+  Control act(const Observation& obs) override {
     check_observation(method_, obs, run_.channels, run_.height, run_.width, history());
     torch::NoGradGuard no_grad;
     float* in = input_.data_ptr<float>();
@@ -829,7 +829,7 @@ class CimAgent : public Agent {
 }  // namespace
 
 std::unique_ptr<Agent> load_cim_agent(const std::string& method, const std::string& dir,
-                                      const Settings& settings) {
+                                      const Settings& settings, const World*) {
   set_torch_threads(1);
   return std::make_unique<CimAgent>(method, dir, settings);
 }

@@ -14,7 +14,7 @@ class ConstantSpeedAgent : public Agent {
   std::string name() const override { return "cs"; }
   bool uses_frames() const override { return false; }
   void begin_episode() override { pid_.reset(); }
-  Control act(const Observation& obs, const World&) override {
+  Control act(const Observation& obs) override {
     return pid_.control(speed_, obs.speed);
   }
   double last_target_speed() const override { return speed_; }
@@ -27,7 +27,7 @@ class ConstantSpeedAgent : public Agent {
 }  // namespace
 
 std::unique_ptr<Agent> load_cs_agent(const std::string&, const std::string&,
-                                     const Settings& settings) {
+                                     const Settings& settings, const World*) {
   return std::make_unique<ConstantSpeedAgent>(settings);
 }
 

@@ -343,7 +343,7 @@ class DimAgent : public Agent {
     target_ = std::nan("");
   }
 
-  Control act(const Observation& obs, const World&) override {
+  Control act(const Observation& obs) override {
     const InputFormat& in = planner_.run().input;
     check_observation(method_, obs, in.channels, in.height, in.width, 1);
     const DimSettings& d = planner_.run().dim;
@@ -383,7 +383,7 @@ class DimAgent : public Agent {
 }  // namespace
 
 std::unique_ptr<Agent> load_dim_agent(const std::string& method, const std::string& dir,
-                                      const Settings& settings) {
+                                      const Settings& settings, const World*) {
   set_torch_threads(1);
   return std::make_unique<DimAgent>(method, dir, settings);
 }

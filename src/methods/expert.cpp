@@ -1,5 +1,6 @@
 // expert: the privileged autopilot the data was collected with (agent only).
 #include "agents/agent.hpp"
+#include "core/error.hpp"
 #include "expert/autopilot.hpp"
 #include "world/world.hpp"
 
@@ -7,22 +8,28 @@ namespace cd {
 
 namespace {
 
+// The autopilot reads the World it drives in (privileged state), given when it is built; a
+// null world makes an expert that can be named and checked but not driven.
 class ExpertAgent : public Agent {
  public:
-  explicit ExpertAgent(const Settings& s) : expert_(s.expert) {}
+  ExpertAgent(const Settings& s, const World* world) : expert_(s.expert), world_(world) {}
   std::string name() const override { return "expert"; }
   bool uses_frames() const override { return false; }
-  Control act(const Observation&, const World& world) override { return expert_.act(world); }
+  Control act(const Observation&) override {
+    if (!world_) throw Error("the expert agent was built without a World to drive in");
+    return expert_.act(*world_);
+  }
 
  private:
   Autopilot expert_;
+  const World* world_;
 };
 
 }  // namespace
 
 std::unique_ptr<Agent> load_expert_agent(const std::string&, const std::string&,
-                                         const Settings& settings) {
-  return std::make_unique<ExpertAgent>(settings);
+                                         const Settings& settings, const World* world) {
+  return std::make_unique<ExpertAgent>(settings, world);
 }
 
 }  // namespace cd

@@ -13,10 +13,14 @@
 
 namespace cd {
 
+class World;
+
 using TrainFn = TrainSummary (*)(const Settings& settings, const TrainRequest& request);
-// `run_dir` is the method's training output (empty for methods without training).
+// `run_dir` is the method's training output (empty for methods without training); `world` the
+// World the agent will drive in (only the privileged expert reads it; may be null when the
+// agent is only checked).
 using AgentFn = std::unique_ptr<Agent> (*)(const std::string& method, const std::string& run_dir,
-                                           const Settings& settings);
+                                           const Settings& settings, const World* world);
 using AdjustFn = void (*)(Settings& settings);
 
 struct MethodSpec {
@@ -49,9 +53,10 @@ Settings effective_settings(const std::string& method, Settings settings);
 // Trains request.method (checked first).
 TrainSummary train_method(const Settings& settings, const TrainRequest& request);
 
-// Agents by name: expert, cs, and the learned methods (which need their run folder).
+// Agents by name: expert, cs, and the learned methods (which need their run folder), to drive
+// in `world` (the expert needs it to act; null: an agent that is only checked).
 // Throws ConfigError for an unknown name or a folder of another method.
 std::unique_ptr<Agent> make_agent(const std::string& name, const std::string& run_dir,
-                                  const Settings& settings);
+                                  const Settings& settings, const World* world = nullptr);
 
 }  // namespace cd

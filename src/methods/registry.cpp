@@ -7,16 +7,21 @@
 namespace cd {
 
 // Defined in methods/<name>.cpp.
-std::unique_ptr<Agent> load_expert_agent(const std::string&, const std::string&, const Settings&);
-std::unique_ptr<Agent> load_cs_agent(const std::string&, const std::string&, const Settings&);
+std::unique_ptr<Agent> load_expert_agent(const std::string&, const std::string&, const Settings&,
+                                    const World*);
+std::unique_ptr<Agent> load_cs_agent(const std::string&, const std::string&, const Settings&,
+                                    const World*);
 TrainSummary train_bc(const Settings&, const TrainRequest&);
-std::unique_ptr<Agent> load_bc_agent(const std::string&, const std::string&, const Settings&);
+std::unique_ptr<Agent> load_bc_agent(const std::string&, const std::string&, const Settings&,
+                                    const World*);
 void bc_so_settings(Settings&);
 TrainSummary train_dim(const Settings&, const TrainRequest&);
-std::unique_ptr<Agent> load_dim_agent(const std::string&, const std::string&, const Settings&);
+std::unique_ptr<Agent> load_dim_agent(const std::string&, const std::string&, const Settings&,
+                                    const World*);
 void dim_single_model(Settings&);
 TrainSummary train_cim(const Settings&, const TrainRequest&);
-std::unique_ptr<Agent> load_cim_agent(const std::string&, const std::string&, const Settings&);
+std::unique_ptr<Agent> load_cim_agent(const std::string&, const std::string&, const Settings&,
+                                    const World*);
 void cim_entangled_settings(Settings&);
 
 const std::vector<MethodSpec>& methods() {
@@ -115,12 +120,12 @@ TrainSummary train_method(const Settings& settings, const TrainRequest& request)
 }
 
 std::unique_ptr<Agent> make_agent(const std::string& name, const std::string& run_dir,
-                                  const Settings& settings) {
+                                  const Settings& settings, const World* world) {
   const MethodSpec& m = find_method(name);
   if (m.train && run_dir.empty())
     throw ConfigError("agent '" + name + "' needs --checkpoint DIR (the output of "
                       "`causaldrive train --method " + name + "`)");
-  return m.agent(name, run_dir, settings);
+  return m.agent(name, run_dir, settings, world);
 }
 
 }  // namespace cd

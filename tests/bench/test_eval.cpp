@@ -35,7 +35,7 @@ class BrakeAgent : public Agent {
  public:
   std::string name() const override { return "brake"; }
   bool uses_frames() const override { return false; }
-  Control act(const Observation&, const World&) override { return {0.0, 1.0}; }
+  Control act(const Observation&) override { return {0.0, 1.0}; }
 };
 
 nlohmann::json read_json(const std::string& path) {
@@ -120,7 +120,7 @@ TEST(BenchEpisode, LeaderDrivesOffAndTheExpertFollows) {
   EXPECT_TRUE(world.truth().lead_present);
   EXPECT_NEAR(world.truth().lead_distance, task.leader_gap, 0.5);
   EXPECT_FALSE(world.truth().path_free);
-  auto expert = make_agent("expert", "", s);
+  auto expert = make_agent("expert", "", s, &world);
   EpisodeResult r = run_episode(world, *expert, task, s);
   EXPECT_EQ(r.outcome, "success");
 }

@@ -2,7 +2,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <new>
 
 #include "agents/agent.hpp"
 #include "methods/method.hpp"
@@ -13,7 +12,6 @@
 #include "train/request.hpp"
 #include "learn_data.hpp"
 #include "nn/policy_net.hpp"
-#include "world/world.hpp"
 
 namespace cd {
 namespace {
@@ -144,12 +142,6 @@ std::string train_tiny(const TempDir& dir, const std::string& method, const std:
   return req.out_dir;
 }
 
-// A World reference for act(): learned agents never touch it.
-const World& no_world() {
-  alignas(World) static unsigned char storage[sizeof(World)];
-  return *std::launder(reinterpret_cast<const World*>(storage));
-}
-
 Observation observation(const EpisodeSet& set, int e, int t, int history, int stride,
                         std::vector<std::vector<uint8_t>>& buffers) {
   Observation obs;
@@ -181,7 +173,7 @@ TEST(PolicyAgent, LoadsACheckpointAndDrives) {
   bool differs = false;
   Control first{};
   for (int t = 4; t < 30; ++t) {
-    Control c = agent->act(observation(set, 0, t, 3, 2, buffers), no_world());
+    Control c = agent->act(observation(set, 0, t, 3, 2, buffers));
     EXPECT_GE(c.throttle, 0.0);
     EXPECT_LE(c.throttle, 1.0);
     EXPECT_GE(c.brake, 0.0);
@@ -196,13 +188,13 @@ TEST(PolicyAgent, LoadsACheckpointAndDrives) {
   PolicyRunner runner(ck);
   Observation obs = observation(set, 1, 20, 3, 2, buffers);
   PolicyStep step = runner.run(obs.frames.data(), obs.speed, obs.command);
-  Control c = agent->act(obs, no_world());
+  Control c = agent->act(obs);
   EXPECT_FLOAT_EQ(static_cast<float>(c.throttle), static_cast<float>(step.throttle));
 
   // The method must match, and observations must have the checkpoint's shape.
   EXPECT_THROW(make_agent("bc-so", ck, s), ConfigError);
   obs.height = 64;
-  EXPECT_THROW(agent->act(obs, no_world()), ConfigError);
+  EXPECT_THROW(agent->act(obs), ConfigError);
   EXPECT_THROW(make_agent("bc-oh", dir / "nothing-here", s), DataError);
 }
 
@@ -215,7 +207,7 @@ TEST(PolicyAgent, TargetSpeedHeadGoesThroughThePid) {
   std::vector<std::vector<uint8_t>> buffers;
   agent->begin_episode();
   for (int t = 0; t < 10; ++t) {
-    Control c = agent->act(observation(set, 0, t, 1, 1, buffers), no_world());
+    Control c = agent->act(observation(set, 0, t, 1, 1, buffers));
     double target = agent->last_target_speed();
     ASSERT_TRUE(std::isfinite(target));
     EXPECT_GE(target, 0.0);

@@ -1,0 +1,221 @@
+// The world's pure parts on a network built by hand, without SUMO: lane planning on the road
+// network, the path's geometry, the ground truth (what "path free" means) and the recorded
+// cause schema. Expected values are worked out by hand from the coordinates below.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <string>
+#include <vector>
+
+#include "world/ground_truth.hpp"
+#include "world/road_network.hpp"
+#include "world/route_path.hpp"
+
+namespace cd {
+namespace {
+
+LaneGeom lane(const std::string& id, const std::string& edge, Vec2 a, Vec2 b, bool internal) {
+  LaneGeom g;
+  g.id = id;
+  g.edge = edge;
+  g.internal = internal;
+  g.width = 3.2;
+  g.length = (b - a).norm();
+  g.shape = {a, b};
+  return g;
+}
+
+// Edge A (0,0)->(100,0), a junction lane :J_0_0 (100,0)->(110,0) behind a light, edge B
+// (110,0)->(210,0); a second lane A_1 of edge A has no link to B.
+RoadNetwork straight_network() {
+  RoadNetwork net;
+  net.map.add(lane("A_0", "A", {0, 0}, {100, 0}, false));
+  LaneGeom a1 = lane("A_1", "A", {0, 3.2}, {100, 3.2}, false);
+  a1.index = 1;
+  net.map.add(a1);
+  net.map.add(lane(":J_0_0", ":J", {100, 0}, {110, 0}, true));
+  net.map.add(lane("B_0", "B", {110, 0}, {210, 0}, false));
+  net.links["A_0"] = {{"B_0", ":J_0_0", 's'}};
+  net.links[":J_0_0"] = {{"B_0", "", 's'}};
+  net.via_info[":J_0_0"] = ViaInfo{"A_0", 's', 'O', "light", 0};
+  net.via_head[":J_0_0"] = ":J_0_0";
+  net.edge_lanes["A"] = {"A_0", "A_1"};
+  net.edge_lanes["B"] = {"B_0"};
+  net.edge_lane["A"] = 0;
+  net.edge_lane["B"] = 3;
+  return net;
+}
+
+const std::vector<std::string> kRoute = {"A", "B"};
+
+TEST(RoadNetwork, PlansLanesWithoutASimulator) {
+  const RoadNetwork net = straight_network();
+  const LanePlan plan = net.lane_plan(kRoute);
+  ASSERT_EQ(plan.size(), 2u);
+  EXPECT_EQ(plan[1], (std::unordered_set<std::string>{"B_0"}));
+  EXPECT_EQ(plan[0], (std::unordered_set<std::string>{"A_0"})) << "A_1 cannot reach B";
+  EXPECT_EQ(net.next_lane("A_0", "B", &plan[1]), ":J_0_0");
+  EXPECT_EQ(net.next_lane("A_1", "B", &plan[1]), "");
+  size_t k = 0;
+  EXPECT_EQ(net.lane_after(kRoute, plan, "A_0", k), ":J_0_0");
+  EXPECT_EQ(net.lane_after(kRoute, plan, ":J_0_0", k), "B_0");
+  EXPECT_EQ(net.lane_after(kRoute, plan, "B_0", k), "") << "the route ends on B";
+  EXPECT_EQ(net.first_via(kRoute, 0), ":J_0_0");
+  EXPECT_EQ(net.rightmost_lane("B").id, "B_0");
+  ASSERT_NE(net.find_via(":J_0_0"), nullptr);
+  EXPECT_EQ(net.find_via(":J_0_0")->tls, "light");
+  EXPECT_EQ(net.find_via("A_0"), nullptr);
+  EXPECT_TRUE(net.foes_of(":J_0_0").empty());
+}
+
+TEST(RoutePath, GeometryAlongTheRoute) {
+  const RoadNetwork net = straight_network();
+  const LanePlan plan = net.lane_plan(kRoute);
+  // The ego's front at 40 m along A_0: A_0 from 40 (s 0), the junction (s 60), B_0 (s 70).
+  const RoutePath path = trace_route_path(net, kRoute, plan, "A_0", 40, 80);
+  ASSERT_EQ(path.lanes.size(), 3u);
+  EXPECT_DOUBLE_EQ(path.lanes[1].s_begin, 60);
+  EXPECT_DOUBLE_EQ(path.lanes[2].s_begin, 70);
+  EXPECT_EQ(path.lanes[2].lane->id, "B_0");
+  EXPECT_DOUBLE_EQ(path.max.x, 210);
+
+  const Vec2 p10 = path.point(10, {0, 0}), p65 = path.point(65, {0, 0});
+  EXPECT_DOUBLE_EQ(p10.x, 50);
+  EXPECT_DOUBLE_EQ(p65.x, 105);
+  EXPECT_DOUBLE_EQ(path.point(500, {0, 0}).x, 210) << "beyond the path: its last point";
+
+  double s = -1;
+  ASSERT_TRUE(path.locate({80, 1.0}, 1.5, &s));
+  EXPECT_DOUBLE_EQ(s, 40);
+  EXPECT_FALSE(path.locate({80, 2.0}, 1.5, &s)) << "too far beside the lane";
+  EXPECT_FALSE(path.locate({20, 0}, 1.5, &s)) << "behind the ego's front";
+
+  const auto line = path.line_across(60);  // the junction's entry
+  ASSERT_TRUE(line.has_value());
+  EXPECT_DOUBLE_EQ(line->first.x, 100);
+  EXPECT_DOUBLE_EQ(line->first.y, 1.6);
+  EXPECT_DOUBLE_EQ(line->second.y, -1.6);
+  EXPECT_FALSE(path.line_across(300).has_value());
+}
+
+struct Junction {
+  char light = 'G';
+  bool blocked = false;
+  std::vector<std::string> asked;
+};
+
+TruthStep truth_of(const RoadNetwork& net, const RoutePath& path, const std::vector<Actor>& actors,
+                   double speed, const WorldSettings& ws, Junction& j) {
+  return compute_ground_truth(
+      {net, path, actors, Pose2{{38, 0}, 0}, speed, 1.8, ws,
+       [&](const ViaInfo&) { return j.light; },
+       [&](const std::string& lane, bool) {
+         j.asked.push_back(lane);
+         return j.blocked;
+       }});
+}
+
+Actor car_at(double x, double speed) {
+  return Actor{"car", Box{{x, 0}, 0, 4.0, 1.8}, speed, false};
+}
+
+TEST(GroundTruth, LeaderLightAndPathFreeByHand) {
+  const RoadNetwork net = straight_network();
+  const LanePlan plan = net.lane_plan(kRoute);
+  const RoutePath path = trace_route_path(net, kRoute, plan, "A_0", 40, 80);
+  WorldSettings ws;  // path_free_decel 3, path_free_margin 6, command_horizon 30
+  Junction j;
+  // A car whose rear bumper is at x = 88: 48 m ahead of the ego's front (x = 40).
+  TruthStep t = truth_of(net, path, {car_at(90, 2.0)}, 10.0, ws, j);
+  EXPECT_TRUE(t.truth.lead_present);
+  EXPECT_DOUBLE_EQ(t.truth.lead_distance, 48);
+  EXPECT_DOUBLE_EQ(t.truth.lead_speed, 2.0);
+  EXPECT_EQ(t.truth.tl_state, kTlGreen);
+  EXPECT_DOUBLE_EQ(t.truth.tl_distance, 60);
+  EXPECT_DOUBLE_EQ(t.truth.junction_distance, 60);
+  EXPECT_DOUBLE_EQ(t.truth.junction_exit_distance, 70);
+  EXPECT_EQ(t.command, kFollow) << "the junction is beyond command_horizon";
+  // Stopping distance at 10 m/s and 3 m/s^2 is 16.7 m, + 6 m: the leader at 48 m is clear.
+  EXPECT_NEAR(t.truth.path_free_distance, 100.0 / 6.0 + 6.0, 1e-12);
+  EXPECT_TRUE(t.truth.path_free);
+  EXPECT_FALSE(t.truth.must_yield);
+  EXPECT_EQ(j.asked, std::vector<std::string>{":J_0_0"}) << "the junction's lanes are checked";
+
+  // Path free is the benchmark's ([world]) definition: at 1 m/s^2 the distance is 56 m.
+  ws.path_free_decel = 1.0;
+  t = truth_of(net, path, {car_at(90, 2.0)}, 10.0, ws, j);
+  EXPECT_DOUBLE_EQ(t.truth.path_free_distance, 56);
+  EXPECT_FALSE(t.truth.path_free);
+
+  // A red light 60 m ahead blocks once the stopping distance reaches it; the light state is
+  // what the next step needs to detect a red-light violation.
+  j.light = 'r';
+  t = truth_of(net, path, {}, 10.0, ws, j);
+  EXPECT_EQ(t.truth.tl_state, kTlRed);
+  EXPECT_EQ(t.next_light_state, 'r');
+  EXPECT_DOUBLE_EQ(t.next_light_distance, 60);
+  EXPECT_TRUE(t.truth.path_free) << "56 m < 60 m";
+  t = truth_of(net, path, {}, 11.0, ws, j);
+  EXPECT_FALSE(t.truth.path_free) << "60.5 + 6 m > 60 m";
+}
+
+TEST(GroundTruth, PedestriansYieldingAndCommand) {
+  const RoadNetwork net = straight_network();
+  const LanePlan plan = net.lane_plan(kRoute);
+  WorldSettings ws;
+  Junction j;
+  // The ego's front at 80 m: the junction is 20 m ahead, inside command_horizon.
+  const RoutePath near = trace_route_path(net, kRoute, plan, "A_0", 80, 80);
+  j.blocked = true;
+  j.light = 'r';
+  const Actor ped{"ped", Box{{95, 1.0}, 0, 0.5, 0.5}, 0.0, true};
+  TruthStep t = truth_of(net, near, {ped}, 0.0, ws, j);
+  EXPECT_EQ(t.command, kStraight);
+  EXPECT_TRUE(t.truth.must_yield);
+  EXPECT_DOUBLE_EQ(t.truth.yield_distance, 20);
+  EXPECT_TRUE(t.truth.ped_on_path);
+  EXPECT_DOUBLE_EQ(t.truth.ped_distance, 15);
+  EXPECT_FALSE(t.truth.lead_present);
+  // Standing still, the path-free distance is the margin (6 m): the pedestrian 15 m ahead
+  // does not block it.
+  EXPECT_DOUBLE_EQ(t.truth.path_free_distance, 6);
+  EXPECT_TRUE(t.truth.path_free);
+  // A pedestrian 1.75 m beside the lane centre is off the path with the default margin (half
+  // the body 0.9 + ped_margin 0.8 = 1.7 m), and on it with a 1 m margin.
+  const Actor aside{"ped2", Box{{90, 1.75}, 0, 0.5, 0.5}, 0.0, true};
+  EXPECT_FALSE(truth_of(net, near, {aside}, 0.0, ws, j).truth.ped_on_path);
+  ws.ped_margin = 1.0;
+  EXPECT_TRUE(truth_of(net, near, {aside}, 0.0, ws, j).truth.ped_on_path);
+}
+
+TEST(CauseSchema, RecordedSeriesInFileOrder) {
+  const auto& schema = cause_schema();
+  std::vector<std::string> names;
+  for (const CauseSeries& c : schema) names.push_back(c.name);
+  EXPECT_EQ(names.size(), 10u);
+  EXPECT_TRUE(std::is_sorted(names.begin(), names.end())) << "HDF5 lists a group's datasets by name";
+  GroundTruth none;
+  none.tl_state = kTlNone;
+  auto value = [&](const std::string& name, const GroundTruth& g) {
+    for (const CauseSeries& c : schema)
+      if (name == c.name) return c.value(g);
+    ADD_FAILURE() << "no series " << name;
+    return -1.0;
+  };
+  EXPECT_EQ(value("lead_distance", none), kAbsentDistance);
+  EXPECT_EQ(value("tl_distance", none), kAbsentDistance);
+  EXPECT_EQ(value("ped_distance", none), kAbsentDistance);
+  EXPECT_EQ(value("path_free", none), 1.0);
+  GroundTruth g;
+  g.lead_present = true;
+  g.lead_distance = 12.5;
+  g.tl_state = kTlYellow;
+  g.tl_distance = 7;
+  EXPECT_EQ(value("lead_distance", g), 12.5);
+  EXPECT_EQ(value("lead_present", g), 1.0);
+  EXPECT_EQ(value("tl_state", g), 2.0);
+  EXPECT_EQ(value("tl_distance", g), 7.0);
+}
+
+}  // namespace
+}  // namespace cd
