@@ -109,6 +109,21 @@ class BcObjective : public Objective {
   torch::Tensor image_, speed_in_, command_, action_, speed_label_;
 };
 
+// The network and optimiser of the last committed epoch in `out`.
+void restore(torch::nn::Module& net, torch::optim::Adam& opt, const std::string& out,
+             const torch::Device& device) {
+  load_module_bytes(net, read_file_bytes(out + "/" + kModelFile), device, out + "/" + kModelFile);
+  try {
+    std::istringstream is(read_file_bytes(out + "/" + kOptimizerFile));
+    torch::serialize::InputArchive archive;
+    archive.load_from(is, device);
+    opt.load(archive);
+  } catch (const c10::Error&) {
+    throw DataError(out + "/" + kOptimizerFile + " does not fit the network; delete the folder "
+                    "to start over");
+  }
+}
+
 void refuse_other_checkpoint(const Checkpoint& c, const std::string& method,
                              const json& settings, const std::string& data_dir,
                              const std::string& out) {
@@ -181,17 +196,7 @@ TrainSummary train_bc(const Settings& settings_in, const TrainRequest& req) {
   net->to(dev.device);
   torch::optim::Adam opt(net->parameters(), torch::optim::AdamOptions(s.train.lr));
   if (ck.epochs_done > 0) {
-    load_module_bytes(*net, read_file_bytes(out + "/" + kModelFile), dev.device,
-                      out + "/" + kModelFile);
-    try {
-      std::istringstream is(read_file_bytes(out + "/" + kOptimizerFile));
-      torch::serialize::InputArchive archive;
-      archive.load_from(is, dev.device);
-      opt.load(archive);
-    } catch (const c10::Error&) {
-      throw DataError(out + "/" + kOptimizerFile + " does not fit the network; delete the folder "
-                      "to start over");
-    }
+    restore(*net, opt, out, dev.device);
     if (!req.quiet) log_line("resuming " + out + " after epoch " + std::to_string(ck.epochs_done));
   }
 

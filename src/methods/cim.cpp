@@ -519,6 +519,106 @@ std::vector<float> base_view(const EpisodeSet& eps, const GreyView& view, json& 
   return take(0, 0, "first frame");
 }
 
+// run.json as the stages go: each stage's files are written first, then commit() names the
+// stage as done (atomically), so a rerun skips finished stages and redoes an interrupted one.
+struct StagedRecord {
+  std::string out;
+  json record;
+
+  bool done(const std::string& stage) const {
+    for (const auto& st : record.at("stages"))
+      if (st == stage) return true;
+    return false;
+  }
+  void commit(const std::string& stage, const json& figures) {
+    record["figures"][stage] = figures;
+    if (!done(stage)) record["stages"].push_back(stage);
+    write_file_atomic(out + "/" + kCimRunJson, record.dump(2) + "\n");
+  }
+};
+
+// Stages series and causes: the latent series, the Granger tests and the selection.
+void causes_stage(const Settings& s, const std::string& method, const EpisodeSet& eps,
+                  const Encoded& enc, StagedRecord& run, bool quiet) {
+  const auto start = Clock::now();
+  const SeriesRows rows = build_series(eps, enc, s.cim.series_stride);
+  if (!run.done("series")) {
+    write_file_atomic(run.out + "/" + kCimSeriesCsv, rows.csv);
+    run.commit("series", {{"rows", static_cast<long>(rows.rows.size())}, {"stride", s.cim.series_stride}});
+  }
+  const CauseSelection sel = select_causes(rows.speed, rows.latents, s.cim, method == "cim-mlp");
+  const json c = causes_json(method, s.cim, sel, rows, eps);
+  write_file_atomic(run.out + "/" + kCimCausesJson, c.dump(2) + "\n");
+  std::string list;
+  for (int i : sel.ranked)
+    list += " z" + std::to_string(i) + " (p " + fmt("%.3g", sel.tests[i].test.p_value) + ")";
+  if (sel.fallback)
+    std::fprintf(stderr, "warning: no latent Granger-causes the speed at %s alpha %g; the speed "
+                         "predictor uses the smallest-p latent z%d alone\n",
+                 s.cim.correction.c_str(), s.cim.alpha, sel.ranked[0]);
+  say(quiet, "  causes: " + std::to_string(sel.significant) + " of " +
+                 std::to_string(s.vae.latents) + " latents significant (" + s.cim.correction +
+                 ", alpha " + fmt("%g", s.cim.alpha) + ", " + std::to_string(s.cim.lags) +
+                 " lags, " + std::to_string(sel.rows) + " rows); picked" + list +
+                 (method == "cim-mlp" ? "; cim-mlp uses all latents" : ""));
+  run.commit("causes", {{"significant", sel.significant},
+                        {"ranked", sel.ranked},
+                        {"selected_count", static_cast<int>(sel.selected.size())},
+                        {"fallback", sel.fallback},
+                        {"capped", sel.capped},
+                        {"seconds", seconds_since(start)}});
+}
+
+// Stage pictures: the traversal of the picked latents and the Granger p-value chart.
+void pictures_stage(const EpisodeSet& eps, const GreyView& view, BetaVae& vae, const json& causes,
+                    StagedRecord& run) {
+  json where;
+  const std::vector<float> base = base_view(eps, view, where);
+  std::vector<int> ranked = causes.at("ranked").get<std::vector<int>>();
+  write_traversal_png(run.out + "/" + kCimTraversalPng, vae, base, ranked);
+  std::vector<double> p;
+  std::vector<bool> sel_flags, sig_flags;
+  for (const auto& l : causes.at("latents")) {
+    p.push_back(l.at("p_value").get<double>());
+    // Highlight the Granger picks (for cim-mlp every latent is an input; the picks still matter).
+    const int i = l.at("index").get<int>();
+    sel_flags.push_back(std::find(ranked.begin(), ranked.end(), i) != ranked.end());
+    sig_flags.push_back(l.at("significant").get<bool>());
+  }
+  write_granger_png(run.out + "/" + kCimGrangerPng, p, sel_flags, sig_flags,
+                    causes.at("threshold_p").get<double>());
+  run.commit("pictures", {{"traversal", kCimTraversalPng},
+                          {"granger", kCimGrangerPng},
+                          {"traversal_rows", ranked},
+                          {"base_frame", where}});
+}
+
+// The run.json of a new run.
+json new_record(const std::string& method, const json& settings, const std::string& data_dir,
+                const std::string& init_dir, const std::string& vae_dir,
+                const std::string& device, const EpisodeSet& eps, const GreyView& view) {
+  return {{"version", kCimRunVersion},
+          {"method", method},
+          {"settings", settings},
+          {"data_dir", data_dir},
+          {"init", init_dir},
+          {"vae_from", vae_dir},
+          {"device", device},
+          {"input",
+           {{"format", "bev"},
+            {"channels", eps.channels},
+            {"height", eps.height},
+            {"width", eps.width},
+            {"channel_names", eps.channel_names},
+            {"dt", eps.dt},
+            {"metres_per_pixel", eps.metres_per_pixel},
+            {"view_channels", view.channels},
+            {"episodes", static_cast<int>(eps.episodes.size())},
+            {"frames", eps.total_frames()}}},
+          {"stages", json::array()},
+          {"figures", json::object()}};
+}
+
 }  // namespace
 
 TrainSummary train_cim(const Settings& settings_in, const TrainRequest& req) {
@@ -569,63 +669,36 @@ TrainSummary train_cim(const Settings& settings_in, const TrainRequest& req) {
   const CimRunInfo* source = init_run ? &*init_run : vae_run ? &*vae_run : nullptr;
   if (source) check_same_input(*source, eps, init_run ? "--init" : "--vae");
 
-  json record;
+  StagedRecord run{out, json()};
   if (previous) {
-    record = previous->record;
-    if (record.at("input").at("frames").get<long>() != eps.total_frames() ||
-        record.at("input").at("episodes").get<int>() != static_cast<int>(eps.episodes.size()))
+    run.record = previous->record;
+    const json& in = run.record.at("input");
+    if (in.at("frames").get<long>() != eps.total_frames() ||
+        in.at("episodes").get<int>() != static_cast<int>(eps.episodes.size()))
       throw ConfigError(out + " holds a run trained on other data (" +
-                        std::to_string(record.at("input").at("episodes").get<int>()) +
+                        std::to_string(in.at("episodes").get<int>()) +
                         " episodes), but " + data_dir + " now gives " +
                         std::to_string(eps.episodes.size()) + ": the data changed; train into "
                         "another --out folder");
   } else {
-    record = {{"version", kCimRunVersion},
-              {"method", req.method},
-              {"settings", settings_json},
-              {"data_dir", data_dir},
-              {"init", init_dir},
-              {"vae_from", vae_dir},
-              {"device", device_name},
-              {"input",
-               {{"format", "bev"},
-                {"channels", eps.channels},
-                {"height", eps.height},
-                {"width", eps.width},
-                {"channel_names", eps.channel_names},
-                {"dt", eps.dt},
-                {"metres_per_pixel", eps.metres_per_pixel},
-                {"view_channels", view.channels},
-                {"episodes", static_cast<int>(eps.episodes.size())},
-                {"frames", eps.total_frames()}}},
-              {"stages", json::array()},
-              {"figures", json::object()}};
+    run.record = new_record(req.method, settings_json, data_dir, init_dir, vae_dir, device_name,
+                            eps, view);
   }
   fs::create_directories(out);
   remove_stale_temporaries(out);
-  auto done = [&](const std::string& stage) {
-    for (const auto& st : record["stages"])
-      if (st == stage) return true;
-    return false;
-  };
-  auto commit = [&](const std::string& stage, const json& figures) {
-    record["figures"][stage] = figures;
-    if (!done(stage)) record["stages"].push_back(stage);
-    write_file_atomic(out + "/" + kCimRunJson, record.dump(2) + "\n");
-  };
-  if (!previous) write_file_atomic(out + "/" + kCimRunJson, record.dump(2) + "\n");
+  if (!previous) write_file_atomic(out + "/" + kCimRunJson, run.record.dump(2) + "\n");
   say(req.quiet, "cim pipeline (" + req.method + ") -> " + out);
 
   // Stage vae: trained here, or copied from --init / --vae.
-  if (!done("vae")) {
+  if (!run.done("vae")) {
     if (source) {
       write_file_atomic(out + "/" + kCimVaeFile, read_file_bytes(source->dir + "/" + kCimVaeFile));
       if (fs::exists(source->dir + "/" + kCimVaeMetrics))
         write_file_atomic(out + "/" + kCimVaeMetrics, read_file_bytes(source->dir + "/" + kCimVaeMetrics));
       say(req.quiet, "  vae: copied from " + source->dir);
-      commit("vae", {{"copied_from", source->dir}});
+      run.commit("vae", {{"copied_from", source->dir}});
     } else {
-      commit("vae", train_vae(s, eps, view, device, out, req.quiet));
+      run.commit("vae", train_vae(s, eps, view, device, out, req.quiet));
     }
   }
   BetaVae vae(s.vae.latents);
@@ -640,46 +713,20 @@ TrainSummary train_cim(const Settings& settings_in, const TrainRequest& req) {
 
   // Stages series and causes (a few-shot run keeps its init run's causes).
   if (init_run) {
-    if (!done("causes")) {
+    if (!run.done("causes")) {
       json c = json::parse(read_file_bytes(init_run->dir + "/" + kCimCausesJson));
       c["copied_from"] = init_run->dir;
       write_file_atomic(out + "/" + kCimCausesJson, c.dump(2) + "\n");
-      commit("causes", {{"copied_from", init_run->dir}, {"selected", c.at("selected")}});
+      run.commit("causes", {{"copied_from", init_run->dir}, {"selected", c.at("selected")}});
     }
-  } else if (!done("series") || !done("causes")) {
-    const auto start = Clock::now();
-    const SeriesRows rows = build_series(eps, encoded(), s.cim.series_stride);
-    if (!done("series")) {
-      write_file_atomic(out + "/" + kCimSeriesCsv, rows.csv);
-      commit("series", {{"rows", static_cast<long>(rows.rows.size())}, {"stride", s.cim.series_stride}});
-    }
-    const CauseSelection sel = select_causes(rows.speed, rows.latents, s.cim, req.method == "cim-mlp");
-    const json c = causes_json(req.method, s.cim, sel, rows, eps);
-    write_file_atomic(out + "/" + kCimCausesJson, c.dump(2) + "\n");
-    std::string list;
-    for (int i : sel.ranked)
-      list += " z" + std::to_string(i) + " (p " + fmt("%.3g", sel.tests[i].test.p_value) + ")";
-    if (sel.fallback)
-      std::fprintf(stderr, "warning: no latent Granger-causes the speed at %s alpha %g; the speed "
-                           "predictor uses the smallest-p latent z%d alone\n",
-                   s.cim.correction.c_str(), s.cim.alpha, sel.ranked[0]);
-    say(req.quiet, "  causes: " + std::to_string(sel.significant) + " of " +
-                       std::to_string(s.vae.latents) + " latents significant (" + s.cim.correction +
-                       ", alpha " + fmt("%g", s.cim.alpha) + ", " + std::to_string(s.cim.lags) +
-                       " lags, " + std::to_string(sel.rows) + " rows); picked" + list +
-                       (req.method == "cim-mlp" ? "; cim-mlp uses all latents" : ""));
-    commit("causes", {{"significant", sel.significant},
-                      {"ranked", sel.ranked},
-                      {"selected_count", static_cast<int>(sel.selected.size())},
-                      {"fallback", sel.fallback},
-                      {"capped", sel.capped},
-                      {"seconds", seconds_since(start)}});
+  } else if (!run.done("series") || !run.done("causes")) {
+    causes_stage(s, req.method, eps, encoded(), run, req.quiet);
   }
   const json causes = json::parse(read_file_bytes(out + "/" + kCimCausesJson));
   const std::vector<int> selected = causes.at("selected").get<std::vector<int>>();
 
   double samples_per_s = 0;
-  const bool predictor_done_before = done("predictor");
+  const bool predictor_done_before = run.done("predictor");
   if (!predictor_done_before) {
     const std::string init_bytes =
         init_run ? read_file_bytes(init_run->dir + "/" + kCimPredictorFile) : std::string();
@@ -687,9 +734,9 @@ TrainSummary train_cim(const Settings& settings_in, const TrainRequest& req) {
                                    out, req.quiet);
     samples_per_s = figures.at("samples_per_s").get<double>();
     if (init_run) figures["init"] = init_run->dir;
-    commit("predictor", figures);
+    run.commit("predictor", figures);
   }
-  const json& pf = record["figures"]["predictor"];
+  const json& pf = run.record["figures"]["predictor"];
   TrainSummary sum = train_summary(req, device_name, pf.at("train_samples").get<long>(),
                                    pf.at("val_samples").get<long>(),
                                    pf.at("train_episodes").get<int>(),
@@ -705,27 +752,7 @@ TrainSummary train_cim(const Settings& settings_in, const TrainRequest& req) {
                      " " + s.train.loss + " loss " + fmt("%.4f", sum.best_loss) + " m/s -> " + out +
                      "/" + kCimPredictorFile);
 
-  if (!done("pictures")) {
-    json where;
-    const std::vector<float> base = base_view(eps, view, where);
-    std::vector<int> ranked = causes.at("ranked").get<std::vector<int>>();
-    write_traversal_png(out + "/" + kCimTraversalPng, vae, base, ranked);
-    std::vector<double> p;
-    std::vector<bool> sel_flags, sig_flags;
-    for (const auto& l : causes.at("latents")) {
-      p.push_back(l.at("p_value").get<double>());
-      // Highlight the Granger picks (for cim-mlp every latent is an input; the picks still matter).
-      const int i = l.at("index").get<int>();
-      sel_flags.push_back(std::find(ranked.begin(), ranked.end(), i) != ranked.end());
-      sig_flags.push_back(l.at("significant").get<bool>());
-    }
-    write_granger_png(out + "/" + kCimGrangerPng, p, sel_flags, sig_flags,
-                      causes.at("threshold_p").get<double>());
-    commit("pictures", {{"traversal", kCimTraversalPng},
-                        {"granger", kCimGrangerPng},
-                        {"traversal_rows", ranked},
-                        {"base_frame", where}});
-  }
+  if (!run.done("pictures")) pictures_stage(eps, view, vae, causes, run);
   sum.seconds = seconds_since(run_start);
   return sum;
 }

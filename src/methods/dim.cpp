@@ -151,6 +151,65 @@ class DimObjective : public Objective {
   torch::Tensor frames_, past_, future_;
 };
 
+// Trains member m of the run on its samples (weights from (train.seed, m)); returns its best
+// weights, fills its metrics and best epoch.
+std::string train_member(DimMember& m, const std::vector<SampleRef>& train, const Samples& samples,
+                         const EpisodeSet& eps, const Settings& s, const std::string& method,
+                         const TrainingDevice& dev, Progress* progress, bool quiet,
+                         LoopTotals& totals) {
+  const DimSettings& d = s.dim;
+  const int epochs = s.train.epochs;
+  const DimNetOptions no = dim_net_options(d, eps.channels, eps.height, eps.width);
+  m.train_samples = static_cast<long>(train.size());
+  m.metrics.clear();
+  const uint64_t member_seed = derive_seed(s.train.seed, static_cast<uint64_t>(m.index));
+
+  torch::manual_seed(derive_seed(member_seed, kWeightStream));
+  DimNet net(no);
+  net->to(dev.device);
+  torch::optim::Adam opt(net->parameters(), torch::optim::AdamOptions(s.train.lr));
+  std::string best_bytes;
+
+  LoopPlan plan;
+  plan.last_epoch = epochs;
+  plan.batch_size = s.train.batch_size;
+  plan.train_size = train.size();
+  plan.val_size = samples.val.size();
+  plan.shuffle_seed = member_seed ^ kShuffleStream;
+  // The NLL of a badly placed sample can be huge while sigma is small: bound the step.
+  plan.clip_grad_norm = 10.0;
+  plan.progress = progress;
+  const std::string member = "member " + std::to_string(m.index + 1) + "/" +
+                             std::to_string(d.ensemble) + " ";
+  plan.note = [&](int epoch, double v) { return member + epoch_note(epoch, epochs, "nll", v, 3); };
+  LoopState state;
+  state.lr = s.train.lr;
+
+  DimObjective objective(eps, d, train, samples.val, net, dev.device, s.train.batch_size);
+  const LoopTotals t = train_epochs(objective, opt, plan, state, [&](const EpochResult& r) {
+    DimEpochMetrics em;
+    static_cast<EpochMetrics&>(em) = r.metrics();
+    em.member = m.index;
+    m.metrics.push_back(em);
+    if (r.improved) {
+      net->to(torch::kCPU);
+      best_bytes = save_module_bytes(*net);
+      net->to(dev.device);
+    }
+    char line[200];
+    std::snprintf(line, sizeof line,
+                  "%s member %d/%d epoch %d/%d: train nll %.4f, val nll %s, %.0f samples/s",
+                  method.c_str(), m.index + 1, d.ensemble, r.epoch, epochs, em.train_loss,
+                  r.val_loss ? std::to_string(*r.val_loss).c_str() : "-", em.samples_per_s);
+    if (!quiet) log_line(line);
+  });
+  m.best_epoch = state.best_epoch;
+  m.best_nll = state.best_loss;
+  totals.samples += t.samples;
+  totals.seconds += t.seconds;
+  return best_bytes;
+}
+
 }  // namespace
 
 TrainSummary train_dim(const Settings& settings_in, const TrainRequest& req) {
@@ -215,7 +274,6 @@ TrainSummary train_dim(const Settings& settings_in, const TrainRequest& req) {
   remove_stale_temporaries(out);
   write_file_atomic(out + "/" + kDimJson, dim_run_to_json(run).dump(2) + "\n");
 
-  const DimNetOptions no = dim_net_options(d, eps.channels, eps.height, eps.width);
   const int epochs = s.train.epochs;
   long to_train = 0;
   std::vector<std::vector<SampleRef>> member_train(run.members.size());
@@ -231,55 +289,9 @@ TrainSummary train_dim(const Settings& settings_in, const TrainRequest& req) {
 
   for (DimMember& m : run.members) {
     if (m.finished) continue;
-    const std::vector<SampleRef>& train = member_train[m.index];
-    m.train_samples = static_cast<long>(train.size());
-    m.metrics.clear();
-    const uint64_t member_seed = derive_seed(s.train.seed, static_cast<uint64_t>(m.index));
-
-    torch::manual_seed(derive_seed(member_seed, kWeightStream));
-    DimNet net(no);
-    net->to(dev.device);
-    torch::optim::Adam opt(net->parameters(), torch::optim::AdamOptions(s.train.lr));
-    std::string best_bytes;
-
-    LoopPlan plan;
-    plan.last_epoch = epochs;
-    plan.batch_size = s.train.batch_size;
-    plan.train_size = train.size();
-    plan.val_size = samples.val.size();
-    plan.shuffle_seed = member_seed ^ kShuffleStream;
-    // The NLL of a badly placed sample can be huge while sigma is small: bound the step.
-    plan.clip_grad_norm = 10.0;
-    plan.progress = progress ? &*progress : nullptr;
-    const std::string member = "member " + std::to_string(m.index + 1) + "/" +
-                               std::to_string(d.ensemble) + " ";
-    plan.note = [&](int epoch, double v) { return member + epoch_note(epoch, epochs, "nll", v, 3); };
-    LoopState state;
-    state.lr = s.train.lr;
-
-    DimObjective objective(eps, d, train, samples.val, net, dev.device, s.train.batch_size);
-    const LoopTotals t = train_epochs(objective, opt, plan, state, [&](const EpochResult& r) {
-      DimEpochMetrics em;
-      static_cast<EpochMetrics&>(em) = r.metrics();
-      em.member = m.index;
-      m.metrics.push_back(em);
-      if (r.improved) {
-        net->to(torch::kCPU);
-        best_bytes = save_module_bytes(*net);
-        net->to(dev.device);
-      }
-      char line[200];
-      std::snprintf(line, sizeof line,
-                    "%s member %d/%d epoch %d/%d: train nll %.4f, val nll %s, %.0f samples/s",
-                    req.method.c_str(), m.index + 1, d.ensemble, r.epoch, epochs, em.train_loss,
-                    r.val_loss ? std::to_string(*r.val_loss).c_str() : "-", em.samples_per_s);
-      if (!req.quiet) log_line(line);
-    });
-    totals.samples += t.samples;
-    totals.seconds += t.seconds;
-    m.best_epoch = state.best_epoch;
-    m.best_nll = state.best_loss;
-
+    const std::string best_bytes =
+        train_member(m, member_train[m.index], samples, eps, s, req.method, dev,
+                     progress ? &*progress : nullptr, req.quiet, totals);
     // Commit the member: its weights, then the record that says it is finished.
     write_file_atomic(out + "/" + dim_member_file(m.index), best_bytes);
     m.finished = true;
