@@ -269,13 +269,10 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
     if (progress) progress->advance(1, "episode " + std::to_string(i) + ": " + outcome);
   };
   // A crashed worker or SUMO failure is the infrastructure's fault: run the episode again.
-  std::vector<int> remaining = todo;
-  std::string error;
-  for (int attempt = 0; attempt < settings.eval.max_attempts && !remaining.empty(); ++attempt) {
-    PoolReport pr = run_worker_pool(settings.eval.workers, remaining, setup, job, on_done);
-    if (!pr.first_error.empty()) error = pr.first_error;
-    remaining = pr.failed;
-  }
+  const PoolReport pool = run_worker_pool_with_retries(
+      settings.eval.workers, todo, settings.eval.max_attempts, setup, job, on_done);
+  const std::vector<int>& remaining = pool.failed;
+  const std::string& error = pool.first_error;
   if (progress) progress->finish();
   nlohmann::json episodes = nlohmann::json::array();
   for (int i = 0; i < total; ++i) {

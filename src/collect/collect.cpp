@@ -60,8 +60,6 @@ CollectReport collect(const Settings& settings, const CollectOptions& options) {
   int total = settings.collect.episodes;
   std::unique_ptr<Progress> progress;
   if (!options.quiet) progress = std::make_unique<Progress>("collect", total, total - (long)todo.size());
-  std::vector<int> remaining = todo;
-  std::string error;
   // Each worker loads the network once; each episode runs in a fresh fork of it.
   std::unique_ptr<World> world;
   auto setup = [&] { world = std::make_unique<World>(settings); };
@@ -84,11 +82,10 @@ CollectReport collect(const Settings& settings, const CollectOptions& options) {
     report.frames += f;
     if (progress) progress->advance(1, "episode " + std::to_string(i) + ": " + outcome);
   };
-  for (int attempt = 0; attempt < kMaxAttempts && !remaining.empty(); ++attempt) {
-    PoolReport run = run_worker_pool(settings.collect.workers, remaining, setup, job, on_done);
-    if (!run.first_error.empty()) error = run.first_error;
-    remaining = run.failed;
-  }
+  const PoolReport pool = run_worker_pool_with_retries(settings.collect.workers, todo,
+                                                       kMaxAttempts, setup, job, on_done);
+  const std::vector<int>& remaining = pool.failed;
+  const std::string& error = pool.first_error;
   if (progress) progress->finish();
   report.recorded_now = static_cast<int>(todo.size() - remaining.size());
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

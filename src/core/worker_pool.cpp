@@ -131,4 +131,18 @@ PoolReport run_worker_pool(int workers, const std::vector<int>& todo,
   return result;
 }
 
+PoolReport run_worker_pool_with_retries(
+    int workers, const std::vector<int>& todo, int attempts, const std::function<void()>& setup,
+    const std::function<std::string(int)>& job,
+    const std::function<void(int, const std::string&)>& on_done) {
+  PoolReport report;
+  report.failed = todo;
+  for (int attempt = 0; attempt < attempts && !report.failed.empty(); ++attempt) {
+    PoolReport run = run_worker_pool(workers, report.failed, setup, job, on_done);
+    if (!run.first_error.empty()) report.first_error = run.first_error;
+    report.failed = run.failed;
+  }
+  return report;
+}
+
 }  // namespace cd

@@ -22,4 +22,12 @@ PoolReport run_worker_pool(int workers, const std::vector<int>& todo,
                            const std::function<std::string(int)>& job,
                            const std::function<void(int, const std::string&)>& on_done);
 
+// run_worker_pool up to `attempts` times: a job whose worker crashed (the infrastructure's
+// fault, not the job's) is run again. `failed` lists what still failed after the last
+// attempt; first_error is the last attempt's first error that was seen.
+PoolReport run_worker_pool_with_retries(
+    int workers, const std::vector<int>& todo, int attempts, const std::function<void()>& setup,
+    const std::function<std::string(int)>& job,
+    const std::function<void(int, const std::string&)>& on_done);
+
 }  // namespace cd
