@@ -311,14 +311,14 @@ TEST(BenchEval, CrashedEpisodeIsRetriedAndNeverCountedAsAPolicyFailure) {
   auto ref = eval_cli(cfg, "quickstart", dir / "ref");
   ASSERT_EQ(ref.exit_code, 0) << ref.describe();
 
-  ::setenv("CAUSALDRIVE_INJECT_CRASH", "1", 1);  // the first run of episode 1 is killed
+  ::setenv("CAUSALDRIVE_INJECT_CRASH", "eval:1", 1);  // the first run of episode 1 is killed
   auto once = eval_cli(cfg, "quickstart", dir / "once");
-  ::setenv("CAUSALDRIVE_INJECT_CRASH", "2:always", 1);  // episode 2 always dies
+  ::setenv("CAUSALDRIVE_INJECT_CRASH", "eval:2:always", 1);  // episode 2 always dies
   auto always = eval_cli(cfg, "quickstart", dir / "always");
   ::unsetenv("CAUSALDRIVE_INJECT_CRASH");
 
   ASSERT_EQ(once.exit_code, 0) << once.describe();
-  EXPECT_TRUE(fs::exists(dir / "once/.crash-injected-1"));
+  EXPECT_TRUE(fs::exists(dir / "once/.crash-injected-eval-1"));
   EXPECT_EQ(test::read_text(dir / "once/results.json"), test::read_text(dir / "ref/results.json"));
 
   ASSERT_EQ(always.exit_code, 0) << always.describe();

@@ -157,6 +157,8 @@ inline int open_out(const std::string& path) {
 
 // Runs argv (argv[0] an absolute path) with stdin from /dev/null and stdout/stderr captured
 // through files; kills it after timeout_s. cwd: the folder to run in (empty: the current one).
+// The command runs in a process group of its own: a crash injected into it that kills its
+// whole group (core/fault.hpp) never reaches the test, and a timeout kills its workers too.
 inline CommandResult run_command(const std::vector<std::string>& argv, const std::string& cwd = "",
                                  double timeout_s = 300) {
   TempDir io("cdtest-io");
@@ -164,7 +166,11 @@ inline CommandResult run_command(const std::vector<std::string>& argv, const std
   std::fflush(nullptr);
   pid_t pid = ::fork();
   if (pid < 0) throw std::runtime_error("fork failed");
-  if (pid == 0) detail::redirect_and_exec(argv, cwd, out_path, err_path);
+  if (pid == 0) {
+    ::setpgid(0, 0);
+    detail::redirect_and_exec(argv, cwd, out_path, err_path);
+  }
+  ::setpgid(pid, pid);  // also from the parent, so the group exists before any kill
   CommandResult r;
   int status = 0;
   auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
@@ -174,7 +180,7 @@ inline CommandResult run_command(const std::vector<std::string>& argv, const std
     if (w < 0) throw std::runtime_error("waitpid failed");
     if (std::chrono::steady_clock::now() > deadline) {
       r.timed_out = true;
-      ::kill(pid, SIGKILL);
+      ::kill(-pid, SIGKILL);
       ::waitpid(pid, &status, 0);
       break;
     }
