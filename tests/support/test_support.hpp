@@ -1,6 +1,6 @@
 #pragma once
-// Shared helpers for the world, collect, cli and core tests (header-only): temporary folders,
-// running the built binary with its output captured, small files, the fast test config.
+// Shared helpers of the unit and e2e tests (header-only): temporary folders, running the built
+// binary with its output captured, small files, the fast test config.
 //
 // Every test file that includes this header points CAUSALDRIVE_CACHE at one folder shared by
 // all test processes (ctest runs each test in its own process), so the generated towns are
@@ -67,6 +67,25 @@ class TempDir {
 
  private:
   std::string path_;
+};
+
+// Sets an environment variable (inherited by the commands a test starts) for its lifetime.
+class ScopedEnv {
+ public:
+  ScopedEnv(const std::string& name, const std::string& value) : name_(name) {
+    if (const char* old = std::getenv(name.c_str())) old_ = old, had_ = true;
+    ::setenv(name.c_str(), value.c_str(), 1);
+  }
+  ~ScopedEnv() {
+    if (had_) ::setenv(name_.c_str(), old_.c_str(), 1);
+    else ::unsetenv(name_.c_str());
+  }
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  std::string name_, old_;
+  bool had_ = false;
 };
 
 inline void write_text(const std::string& path, const std::string& text) {
@@ -232,9 +251,11 @@ inline CommandResult run_python(const std::string& script, const std::vector<std
 }
 
 // A fast config for tests: town-a, short warm-up, short routes, few small episodes.
-// `traffic`: empty | regular | dense. `extra` is appended verbatim (more tables).
+// `traffic`: empty | regular | dense. `extra` is appended verbatim (more tables). The routes
+// collected are min_route_m to max_route_m long.
 inline std::string test_config_toml(const std::string& traffic = "empty",
-                                    const std::string& extra = "") {
+                                    const std::string& extra = "", int min_route_m = 100,
+                                    int max_route_m = 200) {
   std::string t;
   t += "# written by the causaldrive tests\n";
   t += "[world]\n";
@@ -244,8 +265,8 @@ inline std::string test_config_toml(const std::string& traffic = "empty",
   t += "\n[collect]\n";
   t += "episodes = 2\n";
   t += "workers = 1\n";
-  t += "min_route_m = 100\n";
-  t += "max_route_m = 200\n";
+  t += "min_route_m = " + std::to_string(min_route_m) + "\n";
+  t += "max_route_m = " + std::to_string(max_route_m) + "\n";
   t += extra;
   return t;
 }

@@ -11,38 +11,18 @@
 
 #include <nlohmann/json.hpp>
 
-#include "diagnostics/probe.hpp"
-#include "learn_data.hpp"
+#include "../support/fake_episodes.hpp"
+#include "../support/tiny_run.hpp"
 
 namespace cd {
 namespace {
 
 using nlohmann::json;
 using test::CommandResult;
+using test::expect_one_line_error;
+using test::read_jsonl;
 using test::TempDir;
-
-std::vector<std::string> train_args(const std::string& config, const std::string& method,
-                                    const std::string& data, const std::string& out,
-                                    std::vector<std::string> more = {}) {
-  std::vector<std::string> args = {"train", "--config", config, "--method", method,
-                                   "--data", data, "--out", out};
-  args.insert(args.end(), more.begin(), more.end());
-  return args;
-}
-
-// Exit code 1 and exactly one line on stderr, containing `needle`.
-void expect_one_line_error(const CommandResult& r, const std::string& needle) {
-  EXPECT_TRUE(r.exited && r.exit_code == 1) << r.describe();
-  auto lines = test::split_lines(r.err);
-  EXPECT_EQ(lines.size(), 1u) << r.describe();
-  EXPECT_NE(r.err.find(needle), std::string::npos) << r.describe();
-}
-
-std::vector<json> read_jsonl(const std::string& path) {
-  std::vector<json> out;
-  for (const auto& line : test::split_lines(test::read_text(path))) out.push_back(json::parse(line));
-  return out;
-}
+using test::train_args;
 
 struct Fixture {
   TempDir dir{"cd-learn-cli"};
@@ -219,19 +199,6 @@ TEST(ProbeCli, ReportsTheHistoryEffect) {
   ASSERT_EQ(test::run_cli(train_args(f.config, "bc-so", f.data, so)).exit_code, 0);
   expect_one_line_error(test::run_cli({"probe", "--checkpoint", so, "--data", f.data}),
                         "needs a history policy such as bc-oh");
-}
-
-TEST(Probe, MovingHistoryShiftsTheSceneUp) {
-  // 1 channel, 4 rows of 2 pixels: rows hold 1, 2, 3, 4.
-  const unsigned char cur[8] = {1, 1, 2, 2, 3, 3, 4, 4};
-  unsigned char out[8];
-  shift_frame_up(cur, 1, 4, 2, 1, out);
-  EXPECT_EQ(std::vector<unsigned char>(out, out + 8),
-            (std::vector<unsigned char>{2, 2, 3, 3, 4, 4, 0, 0}));
-  shift_frame_up(cur, 1, 4, 2, 0, out);
-  EXPECT_EQ(std::vector<unsigned char>(out, out + 8), std::vector<unsigned char>(cur, cur + 8));
-  shift_frame_up(cur, 1, 4, 2, 9, out);
-  EXPECT_EQ(std::vector<unsigned char>(out, out + 8), std::vector<unsigned char>(8, 0));
 }
 
 }  // namespace

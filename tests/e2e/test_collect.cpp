@@ -4,6 +4,7 @@
 #include <signal.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <chrono>
 #include <string>
 #include <thread>
@@ -11,7 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "../support/test_support.hpp"
+#include "../support/tiny_run.hpp"
 #include "collect/collect.hpp"
 #include "core/error.hpp"
 #include "data/h5_episode.hpp"
@@ -42,11 +43,10 @@ std::vector<std::string> tmp_files(const std::string& dir) {
 
 CommandResult collect_cli(const std::string& config, const std::string& out, int episodes,
                           int workers, const std::vector<std::string>& more = {}) {
-  std::vector<std::string> args = {"collect", "--config", config, "--episodes",
-                                   std::to_string(episodes), "--workers", std::to_string(workers),
-                                   "--out", out};
-  args.insert(args.end(), more.begin(), more.end());
-  return test::run_cli(args);
+  return test::run_cli(test::collect_args(
+      config, out,
+      test::with({"--episodes", std::to_string(episodes), "--workers", std::to_string(workers)},
+                 more)));
 }
 
 // The h5py oracle: shapes and types of one or more episode files (SPEC section 2).
