@@ -3,11 +3,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <csignal>
 #include <cstdlib>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <sstream>
 
@@ -15,6 +13,7 @@
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/frame_buffer.hpp"
 #include "core/progress.hpp"
 #include "core/worker_pool.hpp"
@@ -49,24 +48,6 @@ std::string fmt(const char* f, double x) {
   char b[64];
   std::snprintf(b, sizeof b, f, x);
   return b;
-}
-
-// Fault injection for the tests of infrastructure-failure handling:
-// CAUSALDRIVE_INJECT_CRASH=<i> kills the first run of episode i (a marker file in the output
-// folder remembers that it happened); <i>:always kills every run of it.
-void inject_crash(int index, const std::string& out) {
-  const char* spec = std::getenv("CAUSALDRIVE_INJECT_CRASH");
-  if (!spec) return;
-  std::string s = spec;
-  const bool always = s.size() > 7 && s.compare(s.size() - 7, 7, ":always") == 0;
-  if (std::atoi(s.c_str()) != index) return;
-  const std::string marker = out + "/.crash-injected-" + std::to_string(index);
-  if (!always) {
-    std::error_code ec;
-    if (fs::exists(marker, ec)) return;
-    std::ofstream(marker) << "1\n";
-  }
-  std::raise(SIGKILL);
 }
 
 }  // namespace
@@ -244,7 +225,7 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
   std::unique_ptr<World> world;
   auto setup = [&] { world = std::make_unique<World>(settings); };
   auto job = [&](int i) {
-    inject_crash(i, out);
+    inject_crash("eval", i, out);  // CAUSALDRIVE_INJECT_CRASH (core/fault.hpp)
     // The agent is made after the fork: each episode starts from the same agent state.
     auto agent = make_agent(req.agent, req.checkpoint, settings, world.get());
     LoopStats stats;
@@ -257,6 +238,7 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
     }
     identify(r, i);
     write_file_atomic(ep_dir + "/" + episode_record_name(i), episode_to_json(r).dump() + "\n");
+    inject_crash("eval-recorded", i, out, CrashScope::ProcessGroup);
     return std::to_string(stats.steps) + " " + r.outcome;
   };
   auto on_done = [&](int i, const std::string& note) {

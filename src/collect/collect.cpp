@@ -11,6 +11,7 @@
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/progress.hpp"
 #include "core/worker_pool.hpp"
 #include "data/h5_episode.hpp"
@@ -72,6 +73,8 @@ CollectReport collect(const Settings& settings, const CollectOptions& options) {
                           : options.png_dir + "/" + fs::path(episode_file_name(i)).stem().string();
     EpisodeSummary s = recorder.run(i, episode_seed(settings.collect.seed, i), data, meta, png);
     write_episode(out + "/" + episode_file_name(i), meta, data);
+    // CAUSALDRIVE_INJECT_CRASH=collect:<i> (core/fault.hpp): kill -9 of the command and its workers.
+    inject_crash("collect", i, out, CrashScope::ProcessGroup);
     return std::to_string(s.frames) + " " + s.outcome;
   };
   auto on_done = [&](int i, const std::string& note) {

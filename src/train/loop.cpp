@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "core/error.hpp"
+#include "core/fault.hpp"
 #include "core/progress.hpp"
 #include "core/rng.hpp"
 
@@ -130,6 +131,8 @@ LoopTotals train_epochs(Objective& objective, torch::optim::Optimizer& opt, cons
       set_learning_rate(opt, state.lr);
     }
     after_epoch(r);
+    // CAUSALDRIVE_INJECT_CRASH=train:<epoch> (core/fault.hpp): killed with the epoch committed.
+    inject_crash("train", epoch, "");
   }
   return totals;
 }

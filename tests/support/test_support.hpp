@@ -1,6 +1,6 @@
 #pragma once
-// Shared helpers for the world, collect, cli and core tests (header-only): temporary folders,
-// running the built binary with its output captured, small files, the fast test config.
+// Shared helpers of the unit and e2e tests (header-only): temporary folders, running the built
+// binary with its output captured, small files, the fast test config.
 //
 // Every test file that includes this header points CAUSALDRIVE_CACHE at one folder shared by
 // all test processes (ctest runs each test in its own process), so the generated towns are
@@ -67,6 +67,25 @@ class TempDir {
 
  private:
   std::string path_;
+};
+
+// Sets an environment variable (inherited by the commands a test starts) for its lifetime.
+class ScopedEnv {
+ public:
+  ScopedEnv(const std::string& name, const std::string& value) : name_(name) {
+    if (const char* old = std::getenv(name.c_str())) old_ = old, had_ = true;
+    ::setenv(name.c_str(), value.c_str(), 1);
+  }
+  ~ScopedEnv() {
+    if (had_) ::setenv(name_.c_str(), old_.c_str(), 1);
+    else ::unsetenv(name_.c_str());
+  }
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+ private:
+  std::string name_, old_;
+  bool had_ = false;
 };
 
 inline void write_text(const std::string& path, const std::string& text) {
@@ -157,6 +176,8 @@ inline int open_out(const std::string& path) {
 
 // Runs argv (argv[0] an absolute path) with stdin from /dev/null and stdout/stderr captured
 // through files; kills it after timeout_s. cwd: the folder to run in (empty: the current one).
+// The command runs in a process group of its own: a crash injected into it that kills its
+// whole group (core/fault.hpp) never reaches the test, and a timeout kills its workers too.
 inline CommandResult run_command(const std::vector<std::string>& argv, const std::string& cwd = "",
                                  double timeout_s = 300) {
   TempDir io("cdtest-io");
@@ -164,7 +185,11 @@ inline CommandResult run_command(const std::vector<std::string>& argv, const std
   std::fflush(nullptr);
   pid_t pid = ::fork();
   if (pid < 0) throw std::runtime_error("fork failed");
-  if (pid == 0) detail::redirect_and_exec(argv, cwd, out_path, err_path);
+  if (pid == 0) {
+    ::setpgid(0, 0);
+    detail::redirect_and_exec(argv, cwd, out_path, err_path);
+  }
+  ::setpgid(pid, pid);  // also from the parent, so the group exists before any kill
   CommandResult r;
   int status = 0;
   auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
@@ -174,7 +199,7 @@ inline CommandResult run_command(const std::vector<std::string>& argv, const std
     if (w < 0) throw std::runtime_error("waitpid failed");
     if (std::chrono::steady_clock::now() > deadline) {
       r.timed_out = true;
-      ::kill(pid, SIGKILL);
+      ::kill(-pid, SIGKILL);
       ::waitpid(pid, &status, 0);
       break;
     }
@@ -226,9 +251,11 @@ inline CommandResult run_python(const std::string& script, const std::vector<std
 }
 
 // A fast config for tests: town-a, short warm-up, short routes, few small episodes.
-// `traffic`: empty | regular | dense. `extra` is appended verbatim (more tables).
+// `traffic`: empty | regular | dense. `extra` is appended verbatim (more tables). The routes
+// collected are min_route_m to max_route_m long.
 inline std::string test_config_toml(const std::string& traffic = "empty",
-                                    const std::string& extra = "") {
+                                    const std::string& extra = "", int min_route_m = 100,
+                                    int max_route_m = 200) {
   std::string t;
   t += "# written by the causaldrive tests\n";
   t += "[world]\n";
@@ -238,8 +265,8 @@ inline std::string test_config_toml(const std::string& traffic = "empty",
   t += "\n[collect]\n";
   t += "episodes = 2\n";
   t += "workers = 1\n";
-  t += "min_route_m = 100\n";
-  t += "max_route_m = 200\n";
+  t += "min_route_m = " + std::to_string(min_route_m) + "\n";
+  t += "max_route_m = " + std::to_string(max_route_m) + "\n";
   t += extra;
   return t;
 }

@@ -1,7 +1,7 @@
 // The cim pipeline through the real binary on small hand-made folders: the run folder and its
 // stages, series.csv against causes.json and `causaldrive granger`, the pictures, few-shot
-// adaptation (--init), the VAE reuse checks, one-line errors; then a tiny run end to end in
-// the real simulator (collect, train cim, eval).
+// adaptation (--init), the VAE reuse checks, one-line errors. (A tiny cim run in the simulator
+// is in test_learned_agents.cpp.)
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -10,16 +10,20 @@
 
 #include <nlohmann/json.hpp>
 
-#include "methods/method.hpp"
+#include "../support/fake_episodes.hpp"
+#include "../support/tiny_run.hpp"
 #include "core/error.hpp"
-#include "learn_data.hpp"
+#include "methods/method.hpp"
 
 namespace cd {
 namespace {
 
 using nlohmann::json;
 using test::CommandResult;
+using test::expect_one_line_error;
+using test::read_json;
 using test::TempDir;
+using test::train_args;
 
 const std::vector<std::string> kChannels = {"drivable", "markings", "route", "vehicles",
                                             "pedestrians", "light_red", "light_green",
@@ -77,23 +81,6 @@ std::string tiny_toml(const std::string& extra = "") {
          "\n[cim]\nepochs = 2\nbatch_size = 64\nseries_stride = 2\nmax_causes = 2\nhidden = 16\n"
          "\n[train]\nthreads = 1\nval_fraction = 0.25\n" + extra;
 }
-
-std::vector<std::string> train_args(const std::string& config, const std::string& method,
-                                    const std::string& data, const std::string& out,
-                                    std::vector<std::string> more = {}) {
-  std::vector<std::string> a = {"train", "--config", config, "--method", method, "--data", data,
-                                "--out", out};
-  a.insert(a.end(), more.begin(), more.end());
-  return a;
-}
-
-void expect_one_line_error(const CommandResult& r, const std::string& needle) {
-  EXPECT_TRUE(r.exited && r.exit_code == 1) << r.describe();
-  EXPECT_EQ(test::split_lines(r.err).size(), 1u) << r.describe();
-  EXPECT_NE(r.err.find(needle), std::string::npos) << r.describe();
-}
-
-json read_json(const std::string& path) { return json::parse(test::read_text(path)); }
 
 std::pair<uint32_t, uint32_t> png_size(const std::string& path) {
   const std::string b = test::read_text(path);
@@ -261,38 +248,6 @@ TEST(CimCli, VaeReuseAndFolderChecksGiveOneLineErrors) {
   expect_one_line_error(test::run_cli(train_args(f.config, "cim", f.data, f.dir / "y",
                                                  {"--vae", f.data})),
                         "not a cim run folder");
-}
-
-// In the real simulator: collect two short episodes, train a tiny cim, evaluate it on one
-// short task; the agent drives (its own target speeds) and the results have the contract keys.
-TEST(CimEval, TinyRunDrivesInTheSimulator) {
-  TempDir dir("cdtest-cim-eval");
-  const std::string cfg = test::write_test_config(
-      dir, "regular",
-      "\n[vae]\nlatents = 16\nepochs = 1\nmax_frames = 300\n"
-      "\n[cim]\nepochs = 1\nmax_causes = 2\n\n[train]\nthreads = 1\n");
-  auto c = test::run_cli({"collect", "--config", cfg, "--out", dir / "data"});
-  ASSERT_EQ(c.exit_code, 0) << c.describe();
-  auto t = test::run_cli({"train", "--config", cfg, "--method", "cim", "--data", dir / "data",
-                          "--out", dir / "run"});
-  ASSERT_EQ(t.exit_code, 0) << t.describe();
-  const std::string suite = dir / "one.json";
-  auto s = test::run_cli({"suite", "--town", "town-a", "--traffic", "regular", "--tasks", "1",
-                          "--trials", "1", "--seed", "3", "--min-route", "100", "--max-route",
-                          "150", "--scenarios", "leader", "--out", suite});
-  ASSERT_EQ(s.exit_code, 0) << s.describe();
-  auto e = test::run_cli({"eval", "--config", cfg, "--agent", "cim", "--checkpoint", dir / "run",
-                          "--suite", suite, "--workers", "1", "--out", dir / "eval", "--quiet"});
-  ASSERT_EQ(e.exit_code, 0) << e.describe();
-  EXPECT_NE(e.out.find("| cim |"), std::string::npos) << e.out;
-  json res = read_json(dir / "eval/results.json");
-  EXPECT_EQ(res["agent"], "cim");
-  ASSERT_EQ(res["episodes"].size(), 1u);
-  EXPECT_EQ(res["summary"]["infrastructure_failures"], 0);
-  const std::string outcome = res["episodes"][0]["outcome"];
-  EXPECT_TRUE(outcome == "success" || outcome == "collision" || outcome == "timeout" ||
-              outcome == "inertia")
-      << outcome;
 }
 
 }  // namespace

@@ -1,21 +1,16 @@
-// The torch-free parts of the cim pipeline: Granger cause selection on synthetic latents
-// (a lagged driver is found, noise is not, corrections and the cap act), the grey view, the
-// ground-truth helpers, the PNG writer.
+// Granger cause selection on synthetic latents (causal/cause_selection): a lagged driver is
+// found, noise is not, the corrections and the cap act.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <string>
 #include <vector>
 
+#include "app/settings.hpp"
+#include "causal/cause_selection.hpp"
 #include "causal/granger.hpp"
 #include "core/error.hpp"
-#include "core/png.hpp"
 #include "core/rng.hpp"
-#include "causal/cause_selection.hpp"
-#include "datasets/ground_truth.hpp"
-#include "runs/cim_run.hpp"
-#include "sense/grey_view.hpp"
-#include "../support/test_support.hpp"
 
 namespace cd {
 namespace {
@@ -151,79 +146,6 @@ TEST(CimSelection, NothingSignificantFallsBackToTheSmallestP) {
   ASSERT_EQ(sel.selected.size(), 1u);
   for (const auto& t : sel.tests) EXPECT_GE(t.test.p_value, sel.tests[sel.selected[0]].test.p_value);
   EXPECT_THROW(select_causes(y, latents, settings("holm"), false), ConfigError);
-}
-
-TEST(GreyView, OrsChannelsAndAveragesAreas) {
-  const std::vector<std::string> names = {"drivable", "markings", "route", "vehicles", "pedestrians"};
-  GreyView v = resolve_view("vehicles+pedestrians", names, 128, 128);
-  EXPECT_EQ(v.channels, (std::vector<int>{3, 4}));
-  EXPECT_EQ(v.mask, (1 << 3) | (1 << 4));
-  std::vector<uint8_t> packed(128 * 128, 0);
-  packed[0] = 1 << 3;                       // cell (0,0): 1 of 4 pixels
-  packed[2] = 1 << 4, packed[3] = 1 << 4;   // cell (0,1): 2 of 4 (another channel)
-  packed[128 + 2] = 1 << 3, packed[128 + 3] = 1 << 0;  // cell (0,1): +1 (drivable is not viewed)
-  std::vector<float> out(64 * 64);
-  view_from_packed(v, packed.data(), out.data());
-  EXPECT_FLOAT_EQ(out[0], 0.25f);
-  EXPECT_FLOAT_EQ(out[1], 0.75f);
-  EXPECT_FLOAT_EQ(out[2], 0.0f);
-  // The same frame as 0/255 planes gives the same view.
-  std::vector<uint8_t> planes(5 * 128 * 128, 0);
-  for (size_t i = 0; i < packed.size(); ++i)
-    for (int c = 0; c < 5; ++c)
-      if (packed[i] >> c & 1) planes[c * 128 * 128 + i] = 255;
-  std::vector<float> out2(64 * 64);
-  view_from_planes(v, planes.data(), out2.data());
-  EXPECT_EQ(out, out2);
-  // 64x64 is taken as it is.
-  GreyView same = resolve_view("vehicles", names, 64, 64);
-  std::vector<uint8_t> p64(64 * 64, 0);
-  p64[65] = 1 << 3;
-  view_from_packed(same, p64.data(), out.data());
-  EXPECT_FLOAT_EQ(out[65], 1.0f);
-  EXPECT_FLOAT_EQ(out[64], 0.0f);
-  try {
-    resolve_view("vehicles+cars", names, 64, 64);
-    FAIL() << "no error";
-  } catch (const ConfigError& e) {
-    EXPECT_NE(std::string(e.what()).find("'cars'"), std::string::npos) << e.what();
-  }
-}
-
-TEST(CimGroundTruth, DerivedCausesAndPearson) {
-  PackedEpisode ep;
-  ep.frames = 3;
-  ep.causes["lead_distance"] = {10, 100, 5};
-  ep.causes["lead_present"] = {1, 1, 0};
-  ep.causes["tl_state"] = {1, 2, 1};
-  ep.causes["tl_distance"] = {10, 40, 29};
-  EXPECT_DOUBLE_EQ(ground_truth_value(ep, "lead_distance", 0), 10);
-  EXPECT_DOUBLE_EQ(ground_truth_value(ep, "lead_distance", 1), 60);  // clamped
-  EXPECT_DOUBLE_EQ(ground_truth_value(ep, "lead_distance", 2), 60);  // no leader
-  EXPECT_DOUBLE_EQ(ground_truth_value(ep, "red_light", 0), 1);
-  EXPECT_DOUBLE_EQ(ground_truth_value(ep, "red_light", 1), 0);  // too far
-  EXPECT_DOUBLE_EQ(ground_truth_value(ep, "red_light", 2), 1);
-  EXPECT_TRUE(std::isnan(ground_truth_value(ep, "ped_on_path", 0)));
-  EXPECT_NEAR(pearson({1, 2, 3, 4}, {2, 4, 6, 8}), 1.0, 1e-12);
-  EXPECT_NEAR(pearson({1, 2, 3, 4}, {4, 3, 2, 1}), -1.0, 1e-12);
-  EXPECT_TRUE(std::isnan(pearson({1, 1, 1}, {1, 2, 3})));
-}
-
-TEST(CimPng, HeaderHasTheSize) {
-  test::TempDir dir("cdtest-png");
-  std::vector<uint8_t> rgb(7 * 5 * 3, 200);
-  write_png_rgb(dir / "a.png", rgb, 7, 5);
-  const std::string bytes = test::read_text(dir / "a.png");
-  ASSERT_GT(bytes.size(), 24u);
-  EXPECT_EQ(bytes.substr(1, 3), "PNG");
-  auto be32 = [&](size_t o) {
-    return (uint32_t(uint8_t(bytes[o])) << 24) | (uint32_t(uint8_t(bytes[o + 1])) << 16) |
-           (uint32_t(uint8_t(bytes[o + 2])) << 8) | uint32_t(uint8_t(bytes[o + 3]));
-  };
-  EXPECT_EQ(be32(16), 7u);
-  EXPECT_EQ(be32(20), 5u);
-  EXPECT_EQ(uint8_t(bytes[25]), 2);  // colour type RGB
-  EXPECT_THROW(write_png_gray(dir / "b.png", rgb, 7, 5), IoError);  // wrong size
 }
 
 }  // namespace

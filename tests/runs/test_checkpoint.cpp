@@ -1,12 +1,12 @@
-// The checkpoint record and its commit protocol, without training.
+// The checkpoint record of bc runs (runs/checkpoint) and its commit protocol, without training.
 #include <gtest/gtest.h>
 
 #include <string>
 
 #include "../support/test_support.hpp"
+#include "app/settings.hpp"
 #include "core/error.hpp"
 #include "runs/checkpoint.hpp"
-#include "methods/method.hpp"
 
 namespace cd {
 namespace {
@@ -85,27 +85,6 @@ TEST(Checkpoint, PendingFilesOfTheCommittedEpochRollForward) {
   // Settling again changes nothing.
   EXPECT_EQ(settle_pending_files(dir.path(), 2), 0);
   EXPECT_EQ(test::read_text(dir / "model.pt"), "epoch 2");
-}
-
-TEST(Methods, NamesAndErrors) {
-  for (const auto& m : trainable_methods()) EXPECT_NO_THROW(check_train_method(m));
-  try {
-    check_train_method("fca");
-    FAIL();
-  } catch (const ConfigError& e) {
-    EXPECT_EQ(std::string(e.what()),
-              "method 'fca' is not available in this version (available: bc-so, bc-oh, dim, "
-              "rip, cim, cim-mlp, cim-entangled)");
-  }
-  for (const auto& m : planned_methods()) EXPECT_THROW(check_train_method(m), ConfigError);
-  EXPECT_THROW(check_train_method("expert"), ConfigError);
-  try {
-    check_train_method("bcoh");
-    FAIL();
-  } catch (const ConfigError& e) {
-    EXPECT_NE(std::string(e.what()).find("unknown method 'bcoh'"), std::string::npos);
-    EXPECT_NE(std::string(e.what()).find("dagger"), std::string::npos) << "lists the known names";
-  }
 }
 
 }  // namespace

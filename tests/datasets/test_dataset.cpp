@@ -9,7 +9,7 @@
 #include "core/error.hpp"
 #include "datasets/dataset.hpp"
 #include "methods/method.hpp"
-#include "learn_data.hpp"
+#include "../support/fake_episodes.hpp"
 
 namespace cd {
 namespace {

@@ -1,12 +1,12 @@
 #pragma once
-// Hand-made episode folders for the learn tests (no simulator): frames whose pixels encode
-// the episode and step, known speeds, actions, commands and path_free.
+// Hand-made episode folders for the dataset, method, inference and run tests (no simulator):
+// frames whose pixels encode the episode and step, known speeds, actions, commands and path_free.
 #include <cstdint>
 #include <cstdio>
 #include <string>
 #include <vector>
 
-#include "../support/test_support.hpp"
+#include "test_support.hpp"
 #include "data/h5_episode.hpp"
 
 namespace cd::test {

@@ -4,7 +4,7 @@
 
 #include <filesystem>
 
-#include "../support/test_support.hpp"
+#include "../support/tiny_run.hpp"
 
 namespace cd {
 namespace {
@@ -14,11 +14,7 @@ using test::TempDir;
 
 TEST(Quickstart, RunsTheWholeChainAndResumes) {
   TempDir dir("cdtest-quickstart");
-  const std::string suite = dir / "one.json";
-  auto s = test::run_cli({"suite", "--town", "town-a", "--traffic", "regular", "--tasks", "1",
-                          "--trials", "1", "--seed", "5", "--min-route", "100", "--max-route",
-                          "150", "--scenarios", "leader", "--out", suite});
-  ASSERT_EQ(s.exit_code, 0) << s.describe();
+  const std::string suite = test::write_suite({.seed = 5}, dir / "one.json");  // a leader task
   const std::string cfg = test::write_test_config(
       dir, "regular",
       "\n[train]\nepochs = 1\nthreads = 1\nout = \"" + (dir / "train") + "\"\n" +

@@ -1,0 +1,169 @@
+// `causaldrive eval` end to end with the expert and cs agents: the results' contract keys,
+// determinism whatever the worker count, resume after kill -9, crashed episodes retried and
+// never counted as policy failures, one-line errors.
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "../support/tiny_run.hpp"
+
+namespace cd {
+namespace {
+
+using test::read_json;
+using test::TempDir;
+namespace fs = std::filesystem;
+
+// A suite of short tasks with traffic, made with the CLI like a user would.
+std::string make_small_suite(const TempDir& dir, int tasks) {
+  return test::write_suite({.traffic = "regular",
+                            .tasks = tasks,
+                            .seed = 5,
+                            .min_route = 150,
+                            .max_route = 250,
+                            .scenarios = {"route", "red_light", "leader"}},
+                           dir / "small.json");
+}
+
+test::CommandResult eval_cli(const std::string& config, const std::string& suite,
+                             const std::string& out, const std::string& agent = "expert",
+                             int workers = 2) {
+  return test::run_cli(test::eval_args(config, agent, "", suite, out, workers));
+}
+
+TEST(BenchEval, ResultsHaveTheContractKeysAndTheExpertSucceeds) {
+  TempDir dir("cdtest-eval");
+  const std::string cfg = test::write_test_config(dir);
+  auto r = eval_cli(cfg, "quickstart", dir / "out");
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  EXPECT_NE(r.out.find("| expert | quickstart |"), std::string::npos) << r.out;
+  nlohmann::json res = read_json(dir / "out/results.json");
+  EXPECT_EQ(res["agent"], "expert");
+  EXPECT_EQ(res["suite"], "quickstart");
+  ASSERT_EQ(res["episodes"].size(), 4u);
+  const nlohmann::json& s = res["summary"];
+  for (const char* k : {"success_rate", "collision_rate", "inertia_rate", "timeout_rate",
+                        "error_rate", "stall_rate", "route_completion"}) {
+    ASSERT_TRUE(s.contains(k)) << k;
+    EXPECT_GE(s[k].get<double>(), 0.0) << k;
+    EXPECT_LE(s[k].get<double>(), 1.0) << k;
+  }
+  for (const char* k : {"stop_go_events", "start_delay_median_s", "start_delay_p90_s",
+                        "red_light_violations_per_km", "mean_speed"})
+    EXPECT_TRUE(s.contains(k)) << k;
+  EXPECT_DOUBLE_EQ(s["success_rate"].get<double>(), 1.0);
+  EXPECT_DOUBLE_EQ(s["error_rate"].get<double>(),
+                   s["collision_rate"].get<double>() + s["inertia_rate"].get<double>());
+  // The red-light and leader tasks make stop-and-go events; the expert never stalls.
+  EXPECT_GE(s["stop_go_events"].get<int>(), 2);
+  EXPECT_EQ(s["stalls"].get<int>(), 0);
+  for (const auto& e : res["episodes"]) EXPECT_EQ(e["outcome"], "success");
+}
+
+TEST(BenchEval, SameSeedSameBytesWhateverTheWorkerCount) {
+  TempDir dir("cdtest-eval");
+  const std::string cfg = test::write_test_config(dir);
+  const std::string suite = make_small_suite(dir, 4);
+  auto a = eval_cli(cfg, suite, dir / "a", "cs", 1);
+  auto b = eval_cli(cfg, suite, dir / "b", "cs", 2);
+  ASSERT_EQ(a.exit_code, 0) << a.describe();
+  ASSERT_EQ(b.exit_code, 0) << b.describe();
+  EXPECT_EQ(test::read_text(dir / "a/results.json"), test::read_text(dir / "b/results.json"));
+}
+
+TEST(BenchEval, KilledRunResumesWithNothingLostOrCountedTwice) {
+  TempDir dir("cdtest-eval");
+  const std::string cfg = test::write_test_config(dir, "regular");
+  const std::string suite = make_small_suite(dir, 9);
+  auto ref = eval_cli(cfg, suite, dir / "ref", "expert", 1);
+  ASSERT_EQ(ref.exit_code, 0) << ref.describe();
+
+  // kill -9 of the command and its workers once episode 2's record is written (the hook of
+  // core/fault.hpp): three episodes recorded, no results.
+  {
+    test::ScopedEnv crash("CAUSALDRIVE_INJECT_CRASH", "eval-recorded:2");
+    auto killed = eval_cli(cfg, suite, dir / "run", "expert", 1);
+    ASSERT_TRUE(!killed.exited && killed.signal == SIGKILL) << killed.describe();
+  }
+  EXPECT_FALSE(fs::exists(dir / "run/results.json"));
+  std::vector<std::string> records;
+  for (const auto& n : test::list_dir(dir / "run/episodes"))
+    if (test::ends_with(n, ".json")) records.push_back(n);
+  EXPECT_EQ(records, (std::vector<std::string>{"episode_000000.json", "episode_000001.json",
+                                               "episode_000002.json"}));
+
+  auto again = eval_cli(cfg, suite, dir / "run", "expert", 1);
+  ASSERT_EQ(again.exit_code, 0) << again.describe();
+  EXPECT_NE(again.out.find("episodes run now"), std::string::npos);
+  EXPECT_EQ(test::read_text(dir / "run/results.json"), test::read_text(dir / "ref/results.json"));
+  nlohmann::json res = read_json(dir / "run/results.json");
+  ASSERT_EQ(res["episodes"].size(), 9u);
+  for (int i = 0; i < 9; ++i) EXPECT_EQ(res["episodes"][i]["index"], i);
+}
+
+TEST(BenchEval, CrashedEpisodeIsRetriedAndNeverCountedAsAPolicyFailure) {
+  TempDir dir("cdtest-eval");
+  const std::string cfg = test::write_test_config(dir);
+  auto ref = eval_cli(cfg, "quickstart", dir / "ref");
+  ASSERT_EQ(ref.exit_code, 0) << ref.describe();
+
+  // The hook of core/fault.hpp kills an episode's process as it starts.
+  test::CommandResult once, always;
+  {
+    test::ScopedEnv crash("CAUSALDRIVE_INJECT_CRASH", "eval:1");  // the first run of episode 1
+    once = eval_cli(cfg, "quickstart", dir / "once");
+  }
+  {
+    test::ScopedEnv crash("CAUSALDRIVE_INJECT_CRASH", "eval:2:always");  // every run of episode 2
+    always = eval_cli(cfg, "quickstart", dir / "always");
+  }
+
+  ASSERT_EQ(once.exit_code, 0) << once.describe();
+  EXPECT_TRUE(fs::exists(dir / "once/.crash-injected-eval-1"));
+  EXPECT_EQ(test::read_text(dir / "once/results.json"), test::read_text(dir / "ref/results.json"));
+
+  ASSERT_EQ(always.exit_code, 0) << always.describe();
+  EXPECT_NE(always.err.find("not counted"), std::string::npos) << always.err;
+  nlohmann::json res = read_json(dir / "always/results.json");
+  EXPECT_EQ(res["summary"]["infrastructure_failures"], 1);
+  EXPECT_EQ(res["summary"]["episodes"], 3);
+  EXPECT_DOUBLE_EQ(res["summary"]["success_rate"].get<double>(), 1.0);
+  EXPECT_EQ(res["episodes"][2]["outcome"], "infrastructure_failure");
+  // The next run retries it, and then the results are complete.
+  auto retry = eval_cli(cfg, "quickstart", dir / "always");
+  ASSERT_EQ(retry.exit_code, 0) << retry.describe();
+  EXPECT_EQ(test::read_text(dir / "always/results.json"), test::read_text(dir / "ref/results.json"));
+}
+
+TEST(BenchEval, BadRequestsGiveOneLineAndExitOne) {
+  TempDir dir("cdtest-eval");
+  const std::string cfg = test::write_test_config(dir);
+  auto check = [&](const std::vector<std::string>& args, const std::string& needle) {
+    auto r = test::run_cli(args);
+    EXPECT_TRUE(r.exited && r.exit_code == 1) << r.describe();
+    EXPECT_EQ(test::split_lines(r.err).size(), 1u) << r.err;
+    EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
+  };
+  check({"eval", "--config", cfg, "--agent", "nobody", "--out", dir / "o1"}, "unknown agent");
+  check({"eval", "--config", cfg, "--agent", "expert", "--suite", "town-q-dense", "--out",
+         dir / "o2"},
+        "unknown suite");
+  check({"eval", "--config", cfg, "--agent", "bc-oh", "--out", dir / "o3"}, "--checkpoint");
+  check({"eval", "--config", cfg, "--agent", "bc-oh", "--checkpoint", dir / "missing", "--out",
+         dir / "o4"},
+        "missing");
+  // A folder holding another agent's run is not overwritten.
+  auto r = eval_cli(cfg, "quickstart", dir / "o5");
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  const std::string before = test::read_text(dir / "o5/results.json");
+  check({"eval", "--config", cfg, "--agent", "cs", "--out", dir / "o5"}, "another evaluation");
+  EXPECT_EQ(test::read_text(dir / "o5/results.json"), before);
+}
+
+}  // namespace
+}  // namespace cd
