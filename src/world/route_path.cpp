@@ -5,6 +5,26 @@
 
 namespace cd {
 
+namespace {
+
+// Calls visit(a, b, len, arc, last) for each segment a -> b of a lane's centre line that has a
+// length (len > 0; arc: the lane position where it starts; last: it is the line's last), until
+// visit returns true. Returns whether it did.
+template <class Visit>
+bool walk_segments(const Polyline& shape, Visit visit) {
+  double arc = 0;
+  for (size_t i = 1; i < shape.size(); ++i) {
+    const Vec2 a = shape[i - 1], b = shape[i];
+    const double len = (b - a).norm();
+    if (len < 1e-9) continue;
+    if (visit(a, b, len, arc, i + 1 == shape.size())) return true;
+    arc += len;
+  }
+  return false;
+}
+
+}  // namespace
+
 RoutePath trace_route_path(const RoadNetwork& net, const std::vector<std::string>& route,
                            const LanePlan& plan, const std::string& start_lane, double lane_pos,
                            double horizon) {
@@ -30,22 +50,20 @@ RoutePath trace_route_path(const RoadNetwork& net, const std::vector<std::string
 }
 
 Vec2 RoutePath::point(double s, Vec2 origin) const {
-  Vec2 last = origin;
+  Vec2 last = origin, found;
   for (const PathLane& pl : lanes) {
-    const Polyline& shape = pl.lane->shape;
-    double arc = 0;
-    for (size_t i = 1; i < shape.size(); ++i) {
-      Vec2 a = shape[i - 1], d = shape[i] - a;
-      double len = d.norm();
-      if (len < 1e-9) continue;
-      double lo = std::max(arc, pl.from_pos), hi = arc + len;
-      if (hi > lo) {
-        double s_lo = pl.s_begin + lo - pl.from_pos, s_hi = pl.s_begin + hi - pl.from_pos;
-        if (s <= s_hi) return a + d * ((std::max(s, s_lo) - pl.s_begin + pl.from_pos - arc) / len);
-        last = shape[i];
+    const bool hit = walk_segments(pl.lane->shape, [&](Vec2 a, Vec2 b, double len, double arc, bool) {
+      const double lo = std::max(arc, pl.from_pos), hi = arc + len;
+      if (hi <= lo) return false;
+      const double s_lo = pl.s_begin + lo - pl.from_pos, s_hi = pl.s_begin + hi - pl.from_pos;
+      if (s <= s_hi) {
+        found = a + (b - a) * ((std::max(s, s_lo) - pl.s_begin + pl.from_pos - arc) / len);
+        return true;
       }
-      arc = hi;
-    }
+      last = b;
+      return false;
+    });
+    if (hit) return found;
   }
   return last;
 }
@@ -56,21 +74,16 @@ bool RoutePath::locate(Vec2 p, double half_width, double* s_out) const {
     return false;
   double best = 1e300;
   for (const PathLane& pl : lanes) {
-    const Polyline& shape = pl.lane->shape;
-    double arc = 0;
-    for (size_t i = 1; i < shape.size(); ++i) {
-      Vec2 a = shape[i - 1], d = shape[i] - a;
-      double len = d.norm();
-      if (len < 1e-9) continue;
-      Vec2 u = d * (1.0 / len);
-      double along = (p - a).dot(u);
-      double lat = std::abs((p - a).cross(u));
+    walk_segments(pl.lane->shape, [&](Vec2 a, Vec2 b, double len, double arc, bool) {
+      const Vec2 u = (b - a) * (1.0 / len);
+      const double along = (p - a).dot(u);
+      const double lat = std::abs((p - a).cross(u));
       if (along >= -0.5 && along <= len + 0.5 && lat <= half_width) {
-        double lane_pos = arc + std::clamp(along, 0.0, len);
+        const double lane_pos = arc + std::clamp(along, 0.0, len);
         if (lane_pos >= pl.from_pos - 0.01) best = std::min(best, pl.s_begin + lane_pos - pl.from_pos);
       }
-      arc += len;
-    }
+      return false;
+    });
     if (best < 1e300) break;  // later lanes are farther along the path
   }
   if (best >= 1e300) return false;
@@ -80,24 +93,18 @@ bool RoutePath::locate(Vec2 p, double half_width, double* s_out) const {
 
 std::optional<std::pair<Vec2, Vec2>> RoutePath::line_across(double s) const {
   for (const PathLane& pl : lanes) {
-    double end = pl.s_begin + pl.lane->length - pl.from_pos;
-    if (s > end + 1e-6) continue;
-    const Polyline& shape = pl.lane->shape;
-    double target = pl.from_pos + (s - pl.s_begin), arc = 0;
-    for (size_t i = 1; i < shape.size(); ++i) {
-      Vec2 dv = shape[i] - shape[i - 1];
-      double len = dv.norm();
-      if (len < 1e-9) continue;
-      if (arc + len >= target - 1e-6 || i + 1 == shape.size()) {
-        Vec2 u = dv * (1.0 / len);
-        Vec2 p = shape[i - 1] + u * std::clamp(target - arc, 0.0, len);
-        Vec2 n{-u.y, u.x};
-        double hw = pl.lane->width / 2;
-        return std::make_pair(p + n * hw, p - n * hw);
-      }
-      arc += len;
-    }
-    return std::nullopt;
+    if (s > pl.s_begin + pl.lane->length - pl.from_pos + 1e-6) continue;
+    const double target = pl.from_pos + (s - pl.s_begin), hw = pl.lane->width / 2;
+    std::optional<std::pair<Vec2, Vec2>> line;
+    walk_segments(pl.lane->shape, [&](Vec2 a, Vec2 b, double len, double arc, bool last) {
+      if (arc + len < target - 1e-6 && !last) return false;
+      const Vec2 u = (b - a) * (1.0 / len);
+      const Vec2 q = a + u * std::clamp(target - arc, 0.0, len);
+      const Vec2 n{-u.y, u.x};
+      line = std::make_pair(q + n * hw, q - n * hw);
+      return true;
+    });
+    return line;
   }
   return std::nullopt;
 }
