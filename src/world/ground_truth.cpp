@@ -7,12 +7,6 @@
 
 namespace cd {
 
-namespace {
-
-bool is_upper(char c) { return c >= 'A' && c <= 'Z'; }
-
-}  // namespace
-
 int tl_code(char state) {
   switch (state) {
     case 'r': case 'R': case 'u': case 's': return kTlRed;
@@ -22,6 +16,8 @@ int tl_code(char state) {
     default: return kTlNone;
   }
 }
+
+bool is_minor_link(char state) { return !(state >= 'A' && state <= 'Z') || state == 'O'; }
 
 int command_of(char direction) {
   switch (direction) {
@@ -131,7 +127,7 @@ TruthStep compute_ground_truth(const TruthInputs& in) {
     if (inside || gt.junction_distance <= ws.command_horizon) out.command = command_of(dir);
     // The ego decides at the junction's entry for all of its internal lanes; once inside it
     // is committed (waiting in the middle would leave it standing in other cars' paths).
-    const bool minor = !is_upper(state) || state == 'O';
+    const bool minor = is_minor_link(state);
     for (size_t j = j0; !inside && j < j1 && !gt.must_yield; ++j) {
       if (in.junction_lane_blocked(lanes[j].lane->id, minor)) {
         gt.must_yield = true;

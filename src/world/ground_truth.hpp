@@ -22,6 +22,8 @@ enum TlCode : int { kTlNone = 0, kTlRed = 1, kTlYellow = 2, kTlGreen = 3, kTlGre
 // SUMO's link state character -> TlCode; SUMO's direction character -> Command.
 int tl_code(char state);
 int command_of(char direction);
+// A link without priority (SUMO's lower-case states and 'O', off): who uses it yields.
+bool is_minor_link(char state);
 
 struct Actor {
   std::string id;

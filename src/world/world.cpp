@@ -35,8 +35,6 @@ bool contains(const std::vector<std::string>& v, const std::string& s) {
   return std::find(v.begin(), v.end(), s) != v.end();
 }
 
-bool is_upper(char c) { return c >= 'A' && c <= 'Z'; }
-
 Vec2 to_vec(const libsumo::TraCIPosition& p) { return {p.x, p.y}; }
 
 // The point `pos` metres along a lane's centre line.
@@ -708,7 +706,7 @@ bool World::junction_lane_blocked(const std::string& lane, bool minor) {
     const ViaInfo* fvi = net_->find_via(net_->via_of(foe));
     if (!fvi) continue;
     const char foe_state = link_state(*fvi);
-    if (!is_upper(foe_state) || foe_state == 'O') continue;
+    if (is_minor_link(foe_state)) continue;
     const LaneGeom* ag = net_->map.find(fvi->approach);
     if (!ag) continue;
     for (const std::string& v : libsumo::Lane::getLastStepVehicleIDs(fvi->approach)) {

@@ -112,8 +112,6 @@ class World {
   double time() const { return ego_.time; }
   // Path lanes of the current route from the ego on (ids), for the route layer and tests.
   const std::vector<std::string>& route_lanes() const { return route_lanes_; }
-  // The ego's path this step (80 m, or up to the goal).
-  const RoutePath& path() const { return path_; }
   // The point of the ego's path `s` metres ahead of its front bumper (network frame), or its
   // last point when the path known this step is shorter.
   Vec2 path_point(double s) const { return path_.point(s, ego_.pose.pos); }
