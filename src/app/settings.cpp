@@ -147,6 +147,38 @@ void visit_settings(S& st, V&& v) {
   v.number("dim", "goal_weight", st.dim.goal_weight, 0, 1000);
   v.integer("dim", "ensemble", st.dim.ensemble, 1, 64);
   v.text("dim", "aggregation", st.dim.aggregation, {"worst", "mean"});
+
+  v.integer("residual", "branches", st.residual.branches, 1, 16);
+  v.text("residual", "memory_target", st.residual.memory_target, {"residual", "action", "previous"});
+  v.text("residual", "policy", st.residual.policy,
+         {"stream", "residual_controller", "learned_controller"});
+  v.text("residual", "policy_input", st.residual.policy_input, {"current", "history"});
+  v.text("residual", "weights", st.residual.weights, {"none", "keyframe"});
+
+  v.number("fca", "adversary_weight", st.fca.adversary_weight, 0, 1000);
+  v.integer("fca", "hidden", st.fca.hidden, 1, 4096);
+  v.number("fca", "beta1", st.fca.beta1, 0, 0.999);
+
+  v.text("keyframe", "mode", st.keyframe.mode, {"threshold", "softmax"});
+  v.integer("keyframe", "actions", st.keyframe.actions, 1, 64);
+  v.integer("keyframe", "hidden", st.keyframe.hidden, 1, 4096);
+  v.integer("keyframe", "epochs", st.keyframe.epochs, 1, 100000);
+  v.integer("keyframe", "batch_size", st.keyframe.batch_size, 1, 65536);
+  v.number("keyframe", "lr", st.keyframe.lr, 1e-9, 1);
+  v.number("keyframe", "top_fraction", st.keyframe.top_fraction, 0, 1);
+  v.number("keyframe", "top_weight", st.keyframe.top_weight, 0, 1000);
+  v.number("keyframe", "temperature", st.keyframe.temperature, 1e-6, 1e6);
+
+  v.number("hd", "p", st.hd.p, 0, 1);
+
+  v.integer("dagger", "iterations", st.dagger.iterations, 1, 100);
+  v.integer("dagger", "episodes", st.dagger.episodes, 1, 100000);
+  v.number("dagger", "beta", st.dagger.beta, 0, 1);
+  v.number("dagger", "beta_decay", st.dagger.beta_decay, 0, 1);
+  v.integer("dagger", "epochs", st.dagger.epochs, 1, 100000);
+  v.integer("dagger", "seed", st.dagger.seed, 0, kMaxI64);
+  v.text("dagger", "town", st.dagger.town, {});
+  v.text("dagger", "traffic", st.dagger.traffic, {});
 }
 
 // "world.density.regular" -> {"world", "density", "regular"}: a table's place in nested JSON.

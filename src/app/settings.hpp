@@ -10,6 +10,7 @@
 
 #include "control/pid.hpp"
 #include "expert/expert_settings.hpp"
+#include "methods/method_settings.hpp"
 #include "nn/model_settings.hpp"
 #include "sense/bev.hpp"
 #include "world/world_settings.hpp"
@@ -89,6 +90,11 @@ struct Settings : WorldConfig {  // world, ego, bev
   VaeSettings vae;
   CimSettings cim;
   DimSettings dim;
+  ResidualSettings residual;
+  FcaSettings fca;
+  KeyframeSettings keyframe;
+  HdSettings hd;
+  DaggerSettings dagger;
 };
 
 Settings load_settings(const std::string& path);  // throws ConfigError

@@ -19,6 +19,10 @@ Dataset::Dataset(EpisodeSet episodes, const DatasetOptions& options)
     : set_(std::move(episodes)), opt_(options) {
   if (opt_.history < 1 || opt_.stride < 1)
     throw ConfigError("history and history_stride must be >= 1");
+  if (opt_.action_lags < 0) throw ConfigError("action lags must be >= 0");
+  if (opt_.action_lags > 0 && opt_.action_head != "throttle_brake")
+    throw ConfigError("previous actions need the recorded action as the target "
+                      "(model.action_head = \"throttle_brake\")");
   if (opt_.action_head != "throttle_brake" && opt_.action_head != "target_speed")
     throw ConfigError("unknown action head '" + opt_.action_head + "'");
   const int n = static_cast<int>(set_.episodes.size());
@@ -56,13 +60,15 @@ void Dataset::fill(const SampleRef& s, const SampleView& out) const {
   }
   *out.speed_input = opt_.speed_input ? ep.speed[s.t] : 0.0f;
   *out.command = ep.command[s.t];
+  const size_t A = static_cast<size_t>(set_.action_dim);
   if (opt_.action_head == "throttle_brake") {
-    out.action[0] = ep.action[2 * static_cast<size_t>(s.t)];
-    out.action[1] = ep.action[2 * static_cast<size_t>(s.t) + 1];
+    std::copy_n(ep.action.data() + A * s.t, A, out.action);
   } else {
     out.action[0] = ep.speed[s.t + 1];
   }
   *out.speed_label = ep.speed[s.t];
+  for (int i = 1; i <= opt_.action_lags; ++i)
+    std::copy_n(ep.action.data() + A * (s.t - i), A, out.previous + A * (i - 1));
 }
 
 }  // namespace cd

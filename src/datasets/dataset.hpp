@@ -6,7 +6,11 @@
 // is itself a copycat trigger). Labels: the throttle_brake head learns action[t]; the
 // target_speed head learns speed[t+1], the speed the expert reached one step later (so the
 // last frame of an episode is no sample for it); the auxiliary head learns speed[t].
+// With action_lags L > 0, a sample also carries the recorded actions a_{t-1} .. a_{t-L} and
+// t >= L: at an episode's first frames the previous action is the recorded one, never a padded
+// or invented one (seed 001's residual, fca and keyframe targets and inputs).
 // Validation holds out whole episodes, chosen from the seed.
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -24,6 +28,7 @@ struct DatasetOptions {
   double val_fraction = 0.1;                   // of the episodes
   uint64_t seed = 0;                           // validation split and max_samples subset
   long max_samples = 0;                        // > 0: keep this many samples (both splits)
+  int action_lags = 0;                         // L: previous recorded actions per sample
 };
 
 // One sample's tensors, as flat arrays the trainer copies into a batch.
@@ -33,6 +38,7 @@ struct SampleView {
   int64_t* command = nullptr;     // 1
   float* action = nullptr;        // action_dim: (throttle, brake) or (next speed)
   float* speed_label = nullptr;   // 1: speed[t]
+  float* previous = nullptr;      // L * A recorded actions: a_{t-1} first; null when L = 0
 };
 
 class Dataset {
@@ -42,9 +48,11 @@ class Dataset {
   const EpisodeSet& episodes() const { return set_; }
   const DatasetOptions& options() const { return opt_; }
   int input_channels() const { return opt_.history * set_.channels; }
-  int action_dim() const { return opt_.action_head == "throttle_brake" ? 2 : 1; }
+  int action_dim() const { return opt_.action_head == "throttle_brake" ? set_.action_dim : 1; }
   size_t image_values() const { return static_cast<size_t>(opt_.history) * set_.frame_values(); }
-  int first_step() const { return (opt_.history - 1) * opt_.stride; }  // first valid t
+  int first_step() const {  // first valid t
+    return std::max((opt_.history - 1) * opt_.stride, opt_.action_lags);
+  }
 
   const std::vector<SampleRef>& train() const { return train_; }
   const std::vector<SampleRef>& val() const { return val_; }

@@ -85,9 +85,17 @@ PackedEpisode pack(const std::string& path, const EpisodeData& d) {
 }  // namespace
 
 EpisodeSet load_episode_set(const std::string& dir) {
+  return load_episode_set(std::vector<std::string>{dir});
+}
+
+EpisodeSet load_episode_set(const std::vector<std::string>& dirs) {
   EpisodeSet set;
-  set.dir = dir;
-  for (const std::string& path : list_episode_files(dir)) {
+  std::vector<std::string> paths;
+  for (const std::string& dir : dirs) {
+    set.dir += (set.dir.empty() ? "" : " + ") + dir;
+    for (std::string& p : list_episode_files(dir)) paths.push_back(std::move(p));
+  }
+  for (const std::string& path : paths) {
     EpisodeMeta meta;
     EpisodeData d;
     try {
@@ -120,6 +128,7 @@ EpisodeSet load_episode_set(const std::string& dir) {
           std::to_string(set.width) + "; a data folder must hold one BEV format");
     }
     set.episodes.push_back(pack(path, d));
+    if (dirs.size() > 1) set.episodes.back().file = path;  // names repeat across folders
   }
   return set;
 }

@@ -13,7 +13,7 @@ struct PackedEpisode {
   int frames = 0;                // T
   std::vector<uint8_t> packed;   // T*H*W
   std::vector<float> speed;      // T, m/s
-  std::vector<float> action;     // T*2: throttle, brake (the expert's label)
+  std::vector<float> action;     // T*A: the expert's label (driving: throttle, brake)
   std::vector<int32_t> command;  // T, cd::Command
   std::vector<float> path_free;  // T, ground truth 0/1; empty when the file has none
   std::vector<float> pose;       // T*3: x, y (m, network frame), heading (rad, 0 = east, CCW)
@@ -26,6 +26,7 @@ struct EpisodeSet {
   int channels = 0, height = 0, width = 0;
   double dt = 0.1;                 // s between frames
   double metres_per_pixel = 0.5;
+  int action_dim = 2;              // A: components of each recorded action
   std::vector<std::string> channel_names;
   std::vector<PackedEpisode> episodes;  // in file-name order
 
@@ -46,5 +47,8 @@ std::vector<std::string> list_episode_files(const std::string& dir);
 // whose shape or channels differ from the first, one without (throttle, brake) actions, or
 // frames with more than 8 channels.
 EpisodeSet load_episode_set(const std::string& dir);
+// The episodes of several folders in order, as one set (dagger's aggregate); same checks,
+// and every folder must hold the same frame format.
+EpisodeSet load_episode_set(const std::vector<std::string>& dirs);
 
 }  // namespace cd

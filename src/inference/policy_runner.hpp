@@ -1,10 +1,12 @@
 #pragma once
-// A trained bc-so / bc-oh network loaded from its checkpoint folder, run on one observation at
-// a time on the CPU (closed loop, the copycat probe). Torch stays inside the .cpp.
+// A trained policy of the behaviour-cloning family (bc-so, bc-oh, residual, fca, keyframe, hd,
+// dagger) loaded from its checkpoint folder, run on one observation at a time on the CPU
+// (closed loop, the copycat probe, attention maps). Torch stays inside the .cpp.
 #include <cstdint>
 #include <limits>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "runs/checkpoint.hpp"
 
@@ -38,7 +40,12 @@ class PolicyRunner {
 
   // frames: history() pointers to C*H*W bytes (0/255, C x H x W of the checkpoint's input),
   // oldest first. The speed is zeroed unless the model was trained with a speed input.
-  PolicyStep run(const uint8_t* const* frames, double speed, int command);
+  // previous: the action executed one step before (A values); only residual's memory-only
+  // residual controller reads it (a_{t-1} + the predicted residual); null means zeros.
+  PolicyStep run(const uint8_t* const* frames, double speed, int command,
+                 const float* previous = nullptr);
+  // The action components of the last run() (A values; the target speed for that head).
+  const std::vector<float>& last_action() const;
 
  private:
   struct Impl;

@@ -249,7 +249,7 @@ TrainSummary train_dim(const Settings& settings_in, const TrainRequest& req) {
     run.method = req.method;
     run.settings = settings_json;
     run.dim = d;
-    run.input = {eps.channels, eps.height, eps.width, 1, 1, eps.dt, eps.metres_per_pixel,
+    run.input = {eps.channels, eps.height, eps.width, 1, 1, eps.action_dim, eps.dt, eps.metres_per_pixel,
                  eps.channel_names};
     run.data_dir = data_dir;
     run.train_samples = static_cast<long>(samples.train.size());

@@ -12,9 +12,13 @@ std::unique_ptr<Agent> load_expert_agent(const std::string&, const std::string&,
 std::unique_ptr<Agent> load_cs_agent(const std::string&, const std::string&, const Settings&,
                                     const World*);
 TrainSummary train_bc(const Settings&, const TrainRequest&);
-std::unique_ptr<Agent> load_bc_agent(const std::string&, const std::string&, const Settings&,
-                                    const World*);
 void bc_so_settings(Settings&);
+std::unique_ptr<Agent> load_policy_family_agent(const std::string&, const std::string&,
+                                                const Settings&, const World*);
+TrainSummary train_residual(const Settings&, const TrainRequest&);
+TrainSummary train_fca(const Settings&, const TrainRequest&);
+TrainSummary train_keyframe(const Settings&, const TrainRequest&);
+TrainSummary train_hd(const Settings&, const TrainRequest&);
 TrainSummary train_dim(const Settings&, const TrainRequest&);
 std::unique_ptr<Agent> load_dim_agent(const std::string&, const std::string&, const Settings&,
                                     const World*);
@@ -31,9 +35,17 @@ const std::vector<MethodSpec>& methods() {
       {"cs", "constant speed along the route, blind (seed 000): the collision upper bound",
        nullptr, load_cs_agent, nullptr, false},
       {"bc-so", "behaviour cloning from the current frame (seed 001)",
-       train_bc, load_bc_agent, bc_so_settings, false},
+       train_bc, load_policy_family_agent, bc_so_settings, false},
       {"bc-oh", "behaviour cloning from a history of frames (seed 001)",
-       train_bc, load_bc_agent, nullptr, false},
+       train_bc, load_policy_family_agent, nullptr, false},
+      {"residual", "memory module learns a_t - a_{t-1}, policy acts on the current frame (seed 001)",
+       train_residual, load_policy_family_agent, nullptr, false},
+      {"fca", "adversary removes the previous action from the history feature (seed 001 baseline)",
+       train_fca, load_policy_family_agent, nullptr, false},
+      {"keyframe", "loss up-weights samples where the action changes (seed 001 baseline)",
+       train_keyframe, load_policy_family_agent, nullptr, false},
+      {"hd", "history dropout: past frames blanked with probability hd.p (seed 001 baseline)",
+       train_hd, load_policy_family_agent, nullptr, false},
       {"dim", "imitative trajectory density planned by likelihood (seed 000)",
        train_dim, load_dim_agent, dim_single_model, false},
       {"rip", "ensemble of DIMs on bootstrap resamples, worst-case planning (seed 000)",
@@ -49,7 +61,7 @@ const std::vector<MethodSpec>& methods() {
 }
 
 const std::vector<std::string>& planned_methods() {
-  static const std::vector<std::string> names = {"residual", "fca", "keyframe", "hd", "dagger"};
+  static const std::vector<std::string> names = {"dagger"};
   return names;
 }
 

@@ -1,5 +1,6 @@
 #pragma once
-// The settings of the networks and what they see ([model], [vae], [dim]); torch-free.
+// The settings of the networks and what they see ([model], [vae], [dim], [residual], [fca]);
+// torch-free.
 #include <string>
 
 namespace cd {
@@ -42,6 +43,33 @@ struct DimSettings {
   double goal_weight = 0.02;  // weight of -|last waypoint - goal|^2 (per m^2) in the objective
   int ensemble = 3;           // rip: DIMs trained on bootstrap resamples of the episodes
   std::string aggregation = "worst";  // rip: worst (min over members) | mean
+};
+
+// residual (appendix B.1, figure 6, equation 5) and its ablations (B.2, B.5, table 11).
+struct ResidualSettings {
+  // Heads of the memory module: a_t - a_{t-i} for i = 1..branches (appendix B.5).
+  int branches = 1;
+  // What the memory module learns (figure 8): "residual" (a_t - a_{t-1}, the method),
+  // "action" (a_t) or "previous" (a_{t-1}).
+  std::string memory_target = "residual";
+  // What acts (figure 7): "stream" (the policy module on the current frame plus the detached
+  // memory feature, the method), "residual_controller" (memory only: a_{t-1} + its predicted
+  // residual), "learned_controller" (memory only: a 3-layer MLP on the detached memory feature
+  // learns a_t).
+  std::string policy = "stream";
+  // What the policy stream sees: "current" (the current frame only, the method) or "history"
+  // (the same frames as the memory module: the two-stream bc-oh / keyframe of table 11).
+  std::string policy_input = "current";
+  // Per-sample weights of the policy loss: "none", or "keyframe" (the keyframe method's
+  // weights: two-stream keyframe, table 11).
+  std::string weights = "none";
+};
+
+// fca: adversarial removal of the previous action from the history feature.
+struct FcaSettings {
+  double adversary_weight = 2.0;  // w in L_policy - w * L_adversary (public Hopper run)
+  int hidden = 300;               // adversary MLP width (public code)
+  double beta1 = 0.5;             // Adam beta1 of every fca parameter (public code: 0.5, 0.999)
 };
 
 }  // namespace cd

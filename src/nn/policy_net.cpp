@@ -125,8 +125,15 @@ torch::Tensor ResNet34BackboneImpl::forward(torch::Tensor x) {
   return proj ? torch::relu(proj->forward(f)) : f;
 }
 
+int PolicyNetImpl::action_dim() const {
+  return options_.action_dim > 0 ? options_.action_dim : action_dim_of(options_.action_head);
+}
+
 PolicyNetImpl::PolicyNetImpl(const PolicyNetOptions& o) : options_(o) {
-  const int F = o.features, A = action_dim_of(o.action_head);
+  const int F = o.features, A = action_dim();
+  const std::string& out = o.output;
+  if (!out.empty() && out != "sigmoid" && out != "softplus" && out != "tanh" && out != "linear")
+    throw ConfigError("unknown policy output '" + out + "' (known: sigmoid, softplus, tanh, linear)");
   if (o.backbone == "small") {
     small = SmallBackbone(o.in_channels, o.height, o.width, F);
     register_module("backbone", small);
@@ -139,7 +146,7 @@ PolicyNetImpl::PolicyNetImpl(const PolicyNetOptions& o) : options_(o) {
   speed_head = mlp({F, F, F}, 1, 0.0);
   measurement = nn::Sequential(nn::Linear(1, kMeasurementWidth), nn::ReLU(),
                                nn::Linear(kMeasurementWidth, kMeasurementWidth), nn::ReLU());
-  fusion = nn::Sequential(nn::Linear(F + kMeasurementWidth, F), nn::ReLU());
+  fusion = nn::Sequential(nn::Linear(F + kMeasurementWidth + o.extra_features, F), nn::ReLU());
   branches = nn::ModuleList();
   for (int b = 0; b < kBranches; ++b) branches->push_back(mlp({F, F, F}, A, o.dropout));
   register_module("speed_head", speed_head);
@@ -149,29 +156,49 @@ PolicyNetImpl::PolicyNetImpl(const PolicyNetOptions& o) : options_(o) {
 }
 
 torch::Tensor PolicyNetImpl::squash(const torch::Tensor& raw) const {
-  return options_.action_head == "throttle_brake" ? torch::sigmoid(raw) : torch::softplus(raw);
+  const std::string& out = options_.output.empty()
+                               ? (options_.action_head == "throttle_brake" ? std::string("sigmoid")
+                                                                           : std::string("softplus"))
+                               : options_.output;
+  if (out == "sigmoid") return torch::sigmoid(raw);
+  if (out == "softplus") return torch::softplus(raw);
+  if (out == "tanh") return torch::tanh(raw);
+  return raw;
 }
 
 PolicyOutput PolicyNetImpl::forward(const torch::Tensor& image, const torch::Tensor& speed,
-                                    const torch::Tensor& command, bool with_speed) {
+                                    const torch::Tensor& command, bool with_speed,
+                                    const torch::Tensor& extra) {
   torch::Tensor f = small ? small->forward(image) : resnet->forward(image);
   PolicyOutput out;
+  out.feature = f;
   if (with_speed) out.speed = speed_head->forward(f);
-  torch::Tensor j = fusion->forward(torch::cat({f, measurement->forward(speed)}, 1));
-  const int64_t B = image.size(0);
+  std::vector<torch::Tensor> joined = {f, measurement->forward(speed)};
+  if (options_.extra_features > 0) {
+    if (!extra.defined() || extra.size(1) != options_.extra_features)
+      throw Error("policy network: expected an extra feature of width " +
+                  std::to_string(options_.extra_features));
+    joined.push_back(extra);
+  }
+  torch::Tensor j = fusion->forward(torch::cat(joined, 1));
+  out.embedding = j;
+  out.action = act(j, command);
+  return out;
+}
+
+torch::Tensor PolicyNetImpl::act(const torch::Tensor& j, const torch::Tensor& command) {
+  const int64_t B = j.size(0);
   if (B == 1 && !is_training()) {
     // Closed loop: run only the commanded branch.
     int64_t c = std::clamp<int64_t>(command.item<int64_t>(), 0, kBranches - 1);
-    out.action = squash(branches[c]->as<nn::Sequential>()->forward(j));
-    return out;
+    return squash(branches[c]->as<nn::Sequential>()->forward(j));
   }
   std::vector<torch::Tensor> all;
   for (int b = 0; b < kBranches; ++b) all.push_back(branches[b]->as<nn::Sequential>()->forward(j));
   torch::Tensor stacked = torch::stack(all, 1);  // B x 4 x A
   torch::Tensor index =
       command.clamp(0, kBranches - 1).view({B, 1, 1}).expand({B, 1, stacked.size(2)});
-  out.action = squash(stacked.gather(1, index).squeeze(1));
-  return out;
+  return squash(stacked.gather(1, index).squeeze(1));
 }
 
 std::string save_module_bytes(nn::Module& module) {

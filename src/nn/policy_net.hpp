@@ -29,6 +29,13 @@ struct PolicyNetOptions {
   std::string action_head = "throttle_brake";  // throttle_brake | target_speed
   int features = 256;
   double dropout = 0.2;
+  // The output: 0 / "" take the action head's (2 sigmoid or 1 softplus outputs). Seed 001's
+  // memory module learns differences of actions: action_dim = A * branches, output "linear".
+  int action_dim = 0;
+  std::string output;  // "" | sigmoid | softplus | tanh | linear
+  // Width of a feature given beside the image and joined before the fusion layer (residual:
+  // the memory module's detached backbone feature); 0: none.
+  int extra_features = 0;
 };
 
 // The network [model] describes, for inputs of in_channels x height x width (one mapping for
@@ -39,8 +46,10 @@ PolicyNetOptions policy_net_options(const ModelSettings& m, int in_channels, int
 int action_dim_of(const std::string& action_head);
 
 struct PolicyOutput {
-  torch::Tensor action;  // B x action_dim
-  torch::Tensor speed;   // B x 1, predicted ego speed (m/s); undefined when not asked for
+  torch::Tensor action;     // B x action_dim
+  torch::Tensor speed;      // B x 1, predicted ego speed (m/s); undefined when not asked for
+  torch::Tensor feature;    // B x features: the backbone's output f
+  torch::Tensor embedding;  // B x features: the fusion output j the branches read
 };
 
 // Five stages, sized for 64x64 inputs on a CPU: a 4x4/stride-4 patch convolution (the input
@@ -82,9 +91,14 @@ struct PolicyNetImpl : torch::nn::Module {
   explicit PolicyNetImpl(const PolicyNetOptions& options);
 
   // image: B x K*C x H x W float; speed: B x 1 float (m/s, zeros in the POMDP setting);
-  // command: B int64 in [0, 3]. with_speed: also run the auxiliary speed head.
+  // command: B int64 in [0, 3]. with_speed: also run the auxiliary speed head. extra:
+  // B x extra_features (required when the options have extra features).
   PolicyOutput forward(const torch::Tensor& image, const torch::Tensor& speed,
-                       const torch::Tensor& command, bool with_speed = true);
+                       const torch::Tensor& command, bool with_speed = true,
+                       const torch::Tensor& extra = {});
+  // The commanded branch's action from an embedding j (what forward ends with).
+  torch::Tensor act(const torch::Tensor& embedding, const torch::Tensor& command);
+  int action_dim() const;
 
   const PolicyNetOptions& options() const { return options_; }
 

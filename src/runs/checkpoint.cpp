@@ -17,7 +17,7 @@ using nlohmann::json;
 json checkpoint_to_json(const Checkpoint& c) {
   json metrics = json::array();
   for (const auto& m : c.metrics) metrics.push_back(epoch_metrics_json(m, "loss"));
-  return {
+  json j = {
       {"format", "causaldrive-checkpoint"},
       {"version", kCheckpointVersion},
       {"method", c.method},
@@ -42,6 +42,9 @@ json checkpoint_to_json(const Checkpoint& c) {
       {"bad_epochs", c.bad_epochs},
       {"metrics", metrics},
   };
+  if (c.input.action_dim != 2) j["input"]["action_dim"] = c.input.action_dim;
+  if (!c.method_record.is_null()) j["method_record"] = c.method_record;
+  return j;
 }
 
 Checkpoint checkpoint_from_json(const json& j, const std::string& where) {
@@ -54,7 +57,12 @@ Checkpoint checkpoint_from_json(const json& j, const std::string& where) {
   Checkpoint c;
   c.method = f.get<std::string>("method");
   c.settings = f.at("settings");
-  c.model = settings_from_json(c.settings, where).model;
+  {
+    const Settings s = settings_from_json(c.settings, where);
+    c.model = s.model;
+    c.residual = s.residual;
+    c.fca = s.fca;
+  }
   JsonFields in{f.at("input"), where};
   c.input.channels = in.get<int>("channels");
   c.input.height = in.get<int>("height");
@@ -64,8 +72,10 @@ Checkpoint checkpoint_from_json(const json& j, const std::string& where) {
   c.input.dt = in.get<double>("dt");
   c.input.metres_per_pixel = in.get<double>("metres_per_pixel");
   c.input.channel_names = in.get<std::vector<std::string>>("channel_names");
+  if (f.at("input").contains("action_dim")) c.input.action_dim = in.get<int>("action_dim");
+  if (j.contains("method_record")) c.method_record = j.at("method_record");
   if (c.input.channels < 1 || c.input.height < 1 || c.input.width < 1 || c.input.history < 1 ||
-      c.input.stride < 1)
+      c.input.stride < 1 || c.input.action_dim < 1)
     throw DataError(where + ": input format out of range");
   c.data_dir = f.get<std::string>("data");
   JsonFields samples{f.at("samples"), where}, episodes{f.at("episodes"), where};

@@ -35,6 +35,7 @@ inline constexpr int kCheckpointVersion = 1;
 struct InputFormat {
   int channels = 0, height = 0, width = 0;
   int history = 1, stride = 1;
+  int action_dim = 2;  // components of the recorded action
   double dt = 0.1, metres_per_pixel = 0.5;
   std::vector<std::string> channel_names;
 };
@@ -54,6 +55,12 @@ struct Checkpoint {
   double lr = 0;            // learning rate of the next epoch
   int bad_epochs = 0;       // epochs since the last improvement (plateau schedule)
   std::vector<EpochMetrics> metrics;
+  // What a method keeps beside the common record (keyframe: its action-prediction model's
+  // figures; dagger: iterations and expert labels); null when nothing.
+  nlohmann::json method_record;
+  // Settings that define the networks (settings[...] parsed): seed 001's layout options.
+  ResidualSettings residual;
+  FcaSettings fca;
 };
 
 nlohmann::json checkpoint_to_json(const Checkpoint& c);
