@@ -71,7 +71,9 @@ CollectReport collect(const Settings& settings, const CollectOptions& options) {
     std::string png = options.png_dir.empty()
                           ? ""
                           : options.png_dir + "/" + fs::path(episode_file_name(i)).stem().string();
-    EpisodeSummary s = recorder.run(i, episode_seed(settings.collect.seed, i), data, meta, png);
+    std::unique_ptr<Driver> driver = options.driver ? options.driver() : nullptr;
+    EpisodeSummary s =
+        recorder.run(i, episode_seed(settings.collect.seed, i), data, meta, png, driver.get());
     write_episode(out + "/" + episode_file_name(i), meta, data);
     // CAUSALDRIVE_INJECT_CRASH=collect:<i> (core/fault.hpp): kill -9 of the command and its workers.
     inject_crash("collect", i, out, CrashScope::ProcessGroup);

@@ -1,6 +1,8 @@
 #pragma once
 // Expert data collection: episodes in parallel worker processes (libsumo runs one simulation
 // per process), one HDF5 file each, resumable.
+#include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -12,6 +14,9 @@ namespace cd {
 struct CollectOptions {
   std::string png_dir;  // non-empty: also write every frame as PNG, one folder per episode
   bool quiet = false;   // no progress output
+  // Set: each episode is driven by the driver it makes (made in the episode's worker), with
+  // the expert's labels recorded (dagger's rollouts).
+  std::function<std::unique_ptr<Driver>()> driver;
 };
 
 struct CollectReport {

@@ -62,11 +62,12 @@ Control ExpertRecorder::record_step(EpisodeData& d) const {
 }
 
 EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, EpisodeMeta& meta,
-                                   const std::string& png_dir) {
+                                   const std::string& png_dir, Driver* driver) {
   const CollectSettings& cs = settings_.collect;
   Task task = world_.sample_task(derive_seed(seed, 0), cs.min_route_m, cs.max_route_m);
   if (cs.max_episode_s > 0) task.timeout_s = std::min(task.timeout_s, cs.max_episode_s);
   world_.reset(task);
+  if (driver) driver->begin_episode(world_, seed);
 
   begin(d);
   const BevRenderer& bev = world_.renderer();
@@ -91,7 +92,9 @@ EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, Epi
     }
 
     Control executed = label;
-    if (ns.enabled) {
+    if (driver) {
+      executed = driver->drive(label);
+    } else if (ns.enabled) {
       if (noise_left <= 0 && noise_rng.uniform() < ns.rate_per_s * settings_.world.dt) {
         noise_left = noise_rng.uniform(ns.min_s, ns.max_s);
         bool brake = noise_rng.uniform() < 0.5;
@@ -127,7 +130,8 @@ EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, Epi
   meta.extra["episode_index"] = std::to_string(index);
   meta.extra["red_light_violations"] = std::to_string(world_.counters().red_light_violations);
   if (!r.collided_with.empty()) meta.extra["collided_with"] = r.collided_with;
-  meta.extra["noise"] = ns.enabled ? "on" : "off";
+  meta.extra["noise"] = ns.enabled && !driver ? "on" : "off";
+  if (driver) meta.extra["driver"] = driver->describe();
   meta.extra["command_codes"] = "0 follow, 1 left, 2 right, 3 straight";
   meta.extra["tl_state_codes"] = "0 none, 1 red, 2 yellow, 3 green, 4 green-yield";
 

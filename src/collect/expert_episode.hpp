@@ -25,14 +25,26 @@ struct EpisodeSummary {
 // Names of the recorded causes/ series, in file order.
 const std::vector<std::string>& cause_names();
 
+// What drives a recorded episode in place of the expert (dagger's closed-loop rollouts): it is
+// told the world when the episode starts and, every step, the expert's label; it returns the
+// executed control. The recorded labels stay the expert's; noise injection is off.
+class Driver {
+ public:
+  virtual ~Driver() = default;
+  virtual void begin_episode(World& world, uint64_t episode_seed) = 0;
+  virtual Control drive(const Control& expert_label) = 0;
+  virtual std::string describe() const = 0;  // kept as the episode's "driver" attribute
+};
+
 class ExpertRecorder {
  public:
   ExpertRecorder(World& world, const Settings& settings);
 
   // Samples the task of `episode_seed`, runs it to the end and fills data and meta.
   // With png_dir non-empty, also writes every frame there as PNG.
+  // With a driver, it executes the driver's controls.
   EpisodeSummary run(int index, uint64_t episode_seed, EpisodeData& data, EpisodeMeta& meta,
-                     const std::string& png_dir = "");
+                     const std::string& png_dir = "", Driver* driver = nullptr);
 
   // The two halves of one recorded step, for loops that drive the world themselves (the
   // throughput benchmark): empty `data` shaped for this world's frames, then append the

@@ -28,12 +28,16 @@ class BcObjective : public Objective {
 
 }  // namespace
 
-TrainSummary train_bc(const Settings& settings, const TrainRequest& req) {
+FamilyMethod bc_family_method() {
   FamilyMethod m;
   m.objective = [](FamilyContext& c, nlohmann::json&) -> std::unique_ptr<Objective> {
     return std::make_unique<BcObjective>(c);
   };
-  return train_policy_family(settings, req, m);
+  return m;
+}
+
+TrainSummary train_bc(const Settings& settings, const TrainRequest& req) {
+  return train_policy_family(settings, req, bc_family_method());
 }
 
 void bc_so_settings(Settings& s) {

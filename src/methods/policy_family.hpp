@@ -91,6 +91,9 @@ struct FamilyData {
   std::string init_weights;       // a file of the same networks to start from; "" = fresh
 };
 
+// bc's objective (bc-so, bc-oh, and the policy dagger aggregates data for).
+FamilyMethod bc_family_method();
+
 // Trains `method` into request.out_dir (resumable; same seed, same bytes; a folder of another
 // run is refused). `data` defaults to request.data_dir.
 TrainSummary train_policy_family(const Settings& settings, const TrainRequest& request,
