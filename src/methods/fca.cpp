@@ -25,6 +25,31 @@ torch::Tensor fca_adversary_loss(torch::nn::Sequential& adversary, const torch::
   return (guess - previous_action).pow(2).sum(1).mean();
 }
 
+FcaLosses fca_step(PolicyNets& nets, torch::optim::Optimizer& opt, const PolicyBatch& b,
+                   const Settings& s, double clip) {
+  const std::vector<torch::Tensor> all = nets.parameters(), adv = nets.adversary_parameters();
+  const torch::Tensor prev = b.previous.select(1, 0);
+  PolicyOutput out = nets.policy->forward(b.image, b.speed_in, b.command, true);
+
+  // D step.
+  clear_grads(all);
+  torch::Tensor d_loss = fca_adversary_loss(nets.adversary, out.embedding.detach(), b.action, prev);
+  d_loss.backward();
+  if (clip > 0) torch::nn::utils::clip_grad_norm_(adv, clip);
+  opt.step();
+
+  // E + F step against the updated D, which stays as it is.
+  clear_grads(all);
+  torch::Tensor p_loss = policy_loss(s, out, b.action, b.speed_label);
+  torch::Tensor fooled = fca_adversary_loss(nets.adversary, out.embedding, b.action, prev);
+  (p_loss - s.fca.adversary_weight * fooled).backward();
+  clear_grads(adv);
+  if (clip > 0) torch::nn::utils::clip_grad_norm_(all, clip);
+  opt.step();
+  clear_grads(all);
+  return {p_loss.detach(), d_loss.detach()};
+}
+
 namespace {
 
 class FcaObjective : public Objective {
@@ -43,28 +68,8 @@ class FcaObjective : public Objective {
 
   BatchLoss update(const uint32_t* rows, int64_t n, torch::optim::Optimizer& opt,
                    double clip) override {
-    PolicyNets& nets = c_.nets;
-    const std::vector<torch::Tensor> all = nets.parameters(), adv = nets.adversary_parameters();
-    PolicyBatch b = c_.batcher.batch(true, rows, n);
-    const torch::Tensor prev = b.previous.select(1, 0);
-    PolicyOutput out = nets.policy->forward(b.image, b.speed_in, b.command, true);
-
-    // D step.
-    clear_grads(all);
-    torch::Tensor d_loss = fca_adversary_loss(nets.adversary, out.embedding.detach(), b.action, prev);
-    d_loss.backward();
-    if (clip > 0) torch::nn::utils::clip_grad_norm_(adv, clip);
-    opt.step();
-
-    // E + F step against the updated D.
-    clear_grads(all);
-    torch::Tensor p_loss = policy_loss(c_.settings, out, b.action, b.speed_label);
-    torch::Tensor fooled = fca_adversary_loss(nets.adversary, out.embedding, b.action, prev);
-    (p_loss - c_.settings.fca.adversary_weight * fooled).backward();
-    clear_grads(adv);
-    if (clip > 0) torch::nn::utils::clip_grad_norm_(all, clip);
-    opt.step();
-    return {p_loss.detach(), {d_loss.detach()}};
+    FcaLosses l = fca_step(c_.nets, opt, c_.batcher.batch(true, rows, n), c_.settings, clip);
+    return {l.policy, {l.adversary}};
   }
 
  private:

@@ -34,16 +34,14 @@ struct MethodSpec {
 
 // Every method of the table, in its order.
 const std::vector<MethodSpec>& methods();
-// In SPEC section 3 but not implemented yet.
-const std::vector<std::string>& planned_methods();
 
 // The spec of `name`; ConfigError listing the known names otherwise.
 const MethodSpec& find_method(const std::string& name);
 // Names of the trainable methods, in table order.
 std::vector<std::string> trainable_methods();
 
-// Throws ConfigError: "not available in this version" for a planned method, "nothing to
-// train" for the agent-only names (expert, cs), the list of known names otherwise.
+// Throws ConfigError: "an agent without training" for the agent-only names (expert, cs), the
+// list of trainable names otherwise.
 void check_train_method(const std::string& method);
 
 // The settings a method really trains with (bc-so sees one frame, cim-entangled's VAE has

@@ -151,6 +151,23 @@ class KeyframeWeights {
 torch::Tensor fca_adversary_loss(torch::nn::Sequential& adversary, const torch::Tensor& embedding,
                                  const torch::Tensor& action, const torch::Tensor& previous_action);
 
+// fca's two alternating steps on one batch (D, then E + F against the updated D), with one
+// optimiser over nets.parameters(). Returns the policy loss and D's loss before its step.
+struct FcaLosses {
+  torch::Tensor policy, adversary;
+};
+FcaLosses fca_step(PolicyNets& nets, torch::optim::Optimizer& opt, const PolicyBatch& batch,
+                   const Settings& settings, double clip_grad_norm);
+
+// residual's two losses on a batch: the memory module's (its target and speed head) and the
+// acting part's (the policy module on the detached memory feature, or the learned controller;
+// zero for the residual controller). `weights`: per-sample weights of the acting loss.
+struct ResidualLosses {
+  torch::Tensor memory, act;
+};
+ResidualLosses residual_losses(PolicyNets& nets, const PolicyBatch& batch, const Settings& settings,
+                               int frame_channels, const torch::Tensor& weights = {});
+
 // Sets the gradients of `params` to undefined, so Adam leaves them as they are in the next step
 // (two alternating steps with one optimiser behave as two optimisers).
 void clear_grads(const std::vector<torch::Tensor>& params);

@@ -63,11 +63,6 @@ const std::vector<MethodSpec>& methods() {
   return table;
 }
 
-const std::vector<std::string>& planned_methods() {
-  static const std::vector<std::string> names = {};
-  return names;
-}
-
 namespace {
 
 std::string join(const std::vector<std::string>& names) {
@@ -101,17 +96,10 @@ const MethodSpec& find_method(const std::string& name) {
 void check_train_method(const std::string& method) {
   const std::vector<std::string> available = trainable_methods();
   if (std::find(available.begin(), available.end(), method) != available.end()) return;
-  const auto& planned = planned_methods();
-  if (std::find(planned.begin(), planned.end(), method) != planned.end())
-    throw ConfigError("method '" + method + "' is not available in this version (available: " +
-                      join(available) + ")");
   if (lookup(method))
     throw ConfigError("method '" + method + "' is an agent without training (trainable: " +
                       join(available) + ")");
-  std::vector<std::string> known = available;
-  known.insert(known.end(), planned.begin(), planned.end());
-  throw ConfigError("unknown method '" + method + "' (known: " + join(known) +
-                    "; available in this version: " + join(available) + ")");
+  throw ConfigError("unknown method '" + method + "' (trainable: " + join(available) + ")");
 }
 
 Settings effective_settings(const std::string& method, Settings s) {

@@ -27,6 +27,26 @@ torch::Tensor memory_targets(const std::string& target, const torch::Tensor& act
   return torch::cat(diffs, 1);
 }
 
+ResidualLosses residual_losses(PolicyNets& nets, const PolicyBatch& b, const Settings& s,
+                               int frame_channels, const torch::Tensor& w) {
+  const PolicyNetsLayout& l = nets.layout;
+  PolicyOutput mem = nets.memory->forward(b.image, b.speed_in, b.command, true);
+  torch::Tensor target = memory_targets(l.memory_target, b.action, b.previous, l.memory_heads);
+  ResidualLosses out;
+  out.memory = policy_loss(s, mem, target, b.speed_label);
+  const torch::Tensor feature = mem.feature.detach();
+  if (nets.policy) {
+    torch::Tensor in = l.policy_sees_history ? b.image : b.current(frame_channels);
+    PolicyOutput act = nets.policy->forward(in, b.speed_in, b.command, true, feature);
+    out.act = policy_loss(s, act, b.action, b.speed_label, w);
+  } else if (nets.controller) {
+    out.act = action_loss(s.train.loss, nets.control(feature), b.action, w);
+  } else {
+    out.act = torch::zeros({}, out.memory.options());  // residual controller: M alone acts
+  }
+  return out;
+}
+
 namespace {
 
 class ResidualObjective : public Objective {
@@ -37,26 +57,10 @@ class ResidualObjective : public Objective {
   void set_training(bool on) override { c_.nets.set_training(on); }
 
   BatchLoss loss(bool training, const uint32_t* rows, int64_t n) override {
-    PolicyNets& nets = c_.nets;
-    const PolicyNetsLayout& l = nets.layout;
-    const Settings& s = c_.settings;
     PolicyBatch b = c_.batcher.batch(training, rows, n);
-    PolicyOutput mem = nets.memory->forward(b.image, b.speed_in, b.command, true);
-    torch::Tensor target = memory_targets(l.memory_target, b.action, b.previous, l.memory_heads);
-    torch::Tensor memory_loss = policy_loss(s, mem, target, b.speed_label);
-    const torch::Tensor feature = mem.feature.detach();
     torch::Tensor w = training && weights_ ? weights_->of(b) : torch::Tensor();
-    torch::Tensor act_loss;
-    if (nets.policy) {
-      torch::Tensor in = l.policy_sees_history ? b.image : b.current(c_.data.episodes().channels);
-      PolicyOutput out = nets.policy->forward(in, b.speed_in, b.command, true, feature);
-      act_loss = policy_loss(s, out, b.action, b.speed_label, w);
-    } else if (nets.controller) {
-      act_loss = action_loss(s.train.loss, nets.control(feature), b.action, w);
-    } else {
-      act_loss = torch::zeros({}, memory_loss.options());  // residual controller: M alone acts
-    }
-    return {memory_loss + act_loss, {memory_loss, act_loss}};
+    ResidualLosses l = residual_losses(c_.nets, b, c_.settings, c_.data.episodes().channels, w);
+    return {l.memory + l.act, {l.memory, l.act}};
   }
 
  private:

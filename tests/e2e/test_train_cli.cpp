@@ -127,9 +127,32 @@ TEST(TrainCli, ErrorsAreOneLine) {
                         "not found");
   expect_one_line_error(test::run_cli(train_args(f.config, "bc-xx", f.data, f.dir / "o2")),
                         "unknown method 'bc-xx'");
-  expect_one_line_error(test::run_cli(train_args(f.config, "dagger", f.data, f.dir / "o3")),
-                        "method 'dagger' is not available in this version (available: bc-so, "
-                        "bc-oh, dim, rip, cim, cim-mlp, cim-entangled)");
+  expect_one_line_error(test::run_cli(train_args(f.config, "expert", f.data, f.dir / "o3")),
+                        "method 'expert' is an agent without training (trainable: bc-so, bc-oh, "
+                        "residual, fca, keyframe, hd, dagger, dim, rip, cim, cim-mlp, "
+                        "cim-entangled)");
+  // Seed 001's keys are checked like every other: the file and the key, in one line.
+  const std::pair<const char*, const char*> bad_keys[] = {
+      {"[residual]\nmemory_target = \"bogus\"\n", "memory_target"},
+      {"[residual]\nbranches = 0\n", "branches"},
+      {"[residual]\npolicy = \"both\"\n", "policy"},
+      {"[fca]\nadversary_weight = -1\n", "adversary_weight"},
+      {"[keyframe]\nmode = \"max\"\n", "mode"},
+      {"[hd]\np = 1.5\n", "p"},
+      {"[dagger]\niterations = 0\n", "iterations"},
+      {"[dagger]\nbogus = 1\n", "bogus"}};
+  int k = 0;
+  for (const auto& [text, key] : bad_keys) {
+    const std::string cfg = f.dir / ("bad" + std::to_string(k++) + ".toml");
+    test::write_text(cfg, test::read_text(f.config) + "\n" + text);
+    expect_one_line_error(test::run_cli(train_args(cfg, "residual", f.data, f.dir / "o5")), key);
+  }
+  // Settings the method cannot have.
+  const std::string so = f.dir / "history1.toml";
+  test::write_text(so, test::read_text(f.config) + "\n[residual]\nbranches = 2\n"
+                                                    "memory_target = \"action\"\n");
+  expect_one_line_error(test::run_cli(train_args(so, "residual", f.data, f.dir / "o6")),
+                        "residual.branches > 1 needs residual.memory_target");
   test::write_fake_folder(f.dir / "empty", 0);
   expect_one_line_error(test::run_cli(train_args(f.config, "bc-oh", f.dir / "empty", f.dir / "o4")),
                         "no episode_");
