@@ -131,7 +131,7 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
     }
     sr = world.step(c);
     ++n;
-    r.red_light_violations += sr.ran_red_light;
+    count_junction_entry(r, sr.entered_light);
     const double v = world.ego().speed;
     const bool pf = world.truth().path_free;
     tracker.observe(v, pf);
@@ -295,8 +295,8 @@ std::string results_table(const nlohmann::json& res) {
   std::ostringstream o;
   o << "| agent | suite | episodes | success % | collision % | inertia % | timeout % | error % "
        "| stop-go events | stall % | start delay median / p90 (s) | red lights / km "
-       "| route completion % | mean speed (m/s) |\n";
-  o << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+       "| green light % | route completion % | mean speed (m/s) |\n";
+  o << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   o << "| " << res.at("label").get<std::string>() << " | " << res.at("suite").get<std::string>()
     << " | " << s.at("episodes").get<long>();
   if (s.at("infrastructure_failures").get<long>() > 0)
@@ -306,6 +306,7 @@ std::string results_table(const nlohmann::json& res) {
     << s.at("stop_go_events").get<long>() << " | " << pct("stall_rate") << " | "
     << sec("start_delay_median_s") << " / " << sec("start_delay_p90_s") << " | "
     << fmt("%.2f", s.at("red_light_violations_per_km").get<double>()) << " | "
+    << (s.at("green_light_rate").is_null() ? std::string("-") : pct("green_light_rate")) << " | "
     << pct("route_completion") << " | " << fmt("%.2f", s.at("mean_speed").get<double>())
     << " |\n";
   return o.str();
