@@ -111,6 +111,12 @@ void visit_settings(S& st, V&& v) {
   v.number("eval", "prefill_s", st.eval.prefill_s, 0, 60);
   v.number("eval", "cs_speed", st.eval.cs_speed, 0.5, 40);
   v.integer("eval", "max_attempts", st.eval.max_attempts, 1, 100);
+  v.text("eval", "sensor", st.eval.sensor, {"clean", "shifted"});
+  v.integer("eval", "sensor_seed", st.eval.sensor_shift.seed, 0, kMaxI64);
+  v.number("eval", "sensor_miss", st.eval.sensor_shift.miss, 0, 1);
+  v.number("eval", "sensor_jitter_m", st.eval.sensor_shift.jitter_m, 0, 10);
+  v.number("eval", "sensor_ghosts", st.eval.sensor_shift.ghosts, 0, 20);
+  v.number("eval", "sensor_fade", st.eval.sensor_shift.fade, 0, 1);
 
   v.text("vae", "view", st.vae.view, {});
   v.integer("vae", "latents", st.vae.latents, 1, 4096);

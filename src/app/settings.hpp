@@ -13,6 +13,7 @@
 #include "methods/method_settings.hpp"
 #include "nn/model_settings.hpp"
 #include "sense/bev.hpp"
+#include "sense/sensor_shift.hpp"
 #include "world/world_settings.hpp"
 
 namespace cd {
@@ -59,6 +60,11 @@ struct EvalSettings {
   double prefill_s = 1.0;   // s the ego is held still while the agent's history fills
   double cs_speed = 8.0;    // m/s of the constant-speed baseline
   int max_attempts = 3;     // an episode whose worker or SUMO crashed is run again this often
+  // What the agents' sensor shows (the failure modes' "new sensor" condition): "clean", or
+  // "shifted" with the perception noise of sensor_shift (sense/sensor_shift.hpp). The expert
+  // and the ground truth never see the shift.
+  std::string sensor = "clean";
+  SensorShift sensor_shift;
 };
 
 // Cause selection and the causal speed predictor (seed 000 sections 4.2, 5.4.3).

@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
+#include "world/ground_truth.hpp"
 
 namespace cd {
 
@@ -57,6 +58,13 @@ void StopGoTracker::finish() {
   open_ = false;
 }
 
+void count_junction_entry(EpisodeResult& r, int entered_light) {
+  if (entered_light == kTlNone) return;
+  ++r.light_passages;
+  r.green_light_entries += entered_light == kTlGreen || entered_light == kTlGreenYield;
+  r.red_light_violations += entered_light == kTlRed;
+}
+
 double EpisodeResult::route_completion() const {
   return route_length_m > 0 ? std::clamp(distance_m / route_length_m, 0.0, 1.0) : 0.0;
 }
@@ -80,6 +88,8 @@ nlohmann::json episode_to_json(const EpisodeResult& e) {
                       {"duration_s", e.duration_s},
                       {"mean_speed", e.mean_speed()},
                       {"red_light_violations", e.red_light_violations},
+                      {"light_passages", e.light_passages},
+                      {"green_light_entries", e.green_light_entries},
                       {"stop_go_events", ev}};
   if (!e.collided_with.empty()) j["collided_with"] = e.collided_with;
   if (!e.failure.empty()) j["failure"] = e.failure;
@@ -99,6 +109,8 @@ EpisodeResult episode_from_json(const nlohmann::json& j) {
     e.distance_m = j.at("distance_m").get<double>();
     e.duration_s = j.at("duration_s").get<double>();
     e.red_light_violations = j.at("red_light_violations").get<int>();
+    e.light_passages = j.at("light_passages").get<int>();
+    e.green_light_entries = j.at("green_light_entries").get<int>();
     e.collided_with = j.value("collided_with", "");
     e.failure = j.value("failure", "");
     for (const auto& s : j.at("stop_go_events")) {
@@ -127,7 +139,7 @@ std::optional<double> quantile(std::vector<double> v, double q) {
 
 nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
   long n = 0, failures = 0, success = 0, collision = 0, inertia = 0, timeout = 0, red = 0;
-  long events = 0, stalls = 0;
+  long events = 0, stalls = 0, passages = 0, green = 0;
   double km = 0, completion = 0, distance = 0, duration = 0;
   std::vector<double> delays;
   for (const EpisodeResult& e : episodes) {
@@ -141,6 +153,8 @@ nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
     inertia += e.outcome == "inertia";
     timeout += e.outcome == "timeout";
     red += e.red_light_violations;
+    passages += e.light_passages;
+    green += e.green_light_entries;
     km += e.distance_m / 1000.0;
     completion += e.route_completion();
     distance += e.distance_m;
@@ -166,6 +180,10 @@ nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
           {"start_delay_median_s", opt(quantile(delays, 0.5))},
           {"start_delay_p90_s", opt(quantile(delays, 0.9))},
           {"red_light_violations_per_km", km > 0 ? red / km : 0.0},
+          {"light_passages", passages},
+          {"green_light_entries", green},
+          {"green_light_rate", passages > 0 ? nlohmann::json(static_cast<double>(green) / passages)
+                                            : nlohmann::json()},
           {"route_completion", n > 0 ? completion / n : 0.0},
           {"mean_speed", duration > 0 ? distance / duration : 0.0},
           {"distance_km", km}};

@@ -65,16 +65,26 @@ struct EpisodeResult {
   double distance_m = 0;
   double duration_s = 0;
   int red_light_violations = 0;
+  int light_passages = 0;        // junctions entered through a traffic light
+  int green_light_entries = 0;   // of them, entered on green (SUMO 'G' or 'g')
   std::vector<StopGoEvent> events;
 
   double route_completion() const;
   double mean_speed() const;
 };
 
+// Counts one step's junction entry into the episode: `entered_light` is the TlCode that
+// light_at_junction_entry (world/ground_truth.hpp) gave for the step (StepResult::entered_light).
+// A light-controlled passage unless kTlNone; entered on green for kTlGreen and kTlGreenYield;
+// a red-light violation for kTlRed (yellow is a passage, neither green nor a violation).
+void count_junction_entry(EpisodeResult& r, int entered_light);
+
 nlohmann::json episode_to_json(const EpisodeResult& e);
 EpisodeResult episode_from_json(const nlohmann::json& j);  // throws DataError
 
 // The summary over episodes (infrastructure failures are counted, never in the rates).
+// green_light_rate pools the passages of all episodes (green entries / light-controlled
+// passages, so an episode weighs by its passages); null when no episode passed a light.
 nlohmann::json summarize(const std::vector<EpisodeResult>& episodes);
 
 // q-quantile (0..1) with linear interpolation; nullopt for no values.

@@ -91,18 +91,97 @@ std::string format_number(double v, const char* fmt) {
   return buf;
 }
 
-std::string format_cell(const std::optional<CellStats>& s, double scale) {
+std::string format_cell(const std::optional<CellStats>& s, const Metric& m) {
   if (!s) return kMissingCell;
   if (s->n == 0) return kNoValue;
-  std::string text = format_number(scale * s->mean, "%.1f");
+  const std::string fmt = "%." + std::to_string(m.decimals) + "f";
+  std::string text = format_number(m.scale * s->mean, fmt.c_str());
   if (s->std) {
     text += " \u00b1 ";
-    text += format_number(scale * *s->std, "%.1f");
+    text += format_number(m.scale * *s->std, fmt.c_str());
   }
   return text;
 }
 
+// Groups runs into a table by (label, column_of(run)), in the order given.
+template <class ColumnOf>
+ReportTable group_runs(const std::vector<const RunResult*>& runs, ColumnOf column_of) {
+  ReportTable t;
+  std::set<std::string> columns;
+  for (const RunResult* r : runs) {
+    if (std::find(t.labels.begin(), t.labels.end(), r->label) == t.labels.end())
+      t.labels.push_back(r->label);
+    const std::string column = column_of(*r);
+    columns.insert(column);
+    t.cells[{r->label, column}].push_back(r);
+    t.runs.push_back(r);
+  }
+  t.suites.assign(columns.begin(), columns.end());
+  return t;
+}
+
+// One table of `set` over `table`'s columns, under "## title".
+std::string render_set_table(const ReportTable& table, const MetricSet& set,
+                             const std::string& title) {
+  // Rows of cells: header first, then one per label.
+  std::vector<std::vector<std::string>> rows;
+  std::vector<std::string> header = {"label"};
+  for (const auto& suite : table.suites)
+    for (const auto& m : set.metrics) header.push_back(markdown_escape(suite) + " " + m.header);
+  rows.push_back(header);
+  for (const auto& label : table.labels) {
+    std::vector<std::string> row = {markdown_escape(label)};
+    for (const auto& suite : table.suites)
+      for (const auto& m : set.metrics) row.push_back(format_cell(table.stats(label, suite, m.key), m));
+    rows.push_back(row);
+  }
+  std::vector<size_t> width(header.size(), 3);
+  for (const auto& row : rows)
+    for (size_t c = 0; c < row.size(); ++c) width[c] = std::max(width[c], display_width(row[c]));
+
+  auto line = [&](const std::vector<std::string>& row) {
+    std::string s = "|";
+    for (size_t c = 0; c < row.size(); ++c) {
+      s += ' ';
+      s += pad(row[c], width[c], c > 0);
+      s += " |";
+    }
+    return s + "\n";
+  };
+  std::string out = "## " + title + "\n\n";
+  out += line(rows[0]);
+  std::string rule = "|";
+  for (size_t c = 0; c < width.size(); ++c) {
+    rule += ' ';
+    rule.append(c == 0 ? width[c] : width[c] - 1, '-');  // numbers are right-aligned
+    rule += c == 0 ? " |" : ": |";
+  }
+  out += rule + "\n";
+  for (size_t i = 1; i < rows.size(); ++i) out += line(rows[i]);
+  return out;
+}
+
+// Column groups of the failure-mode tables: traffic levels in NoCrash order, then by name.
+int traffic_rank(const std::string& column) {
+  static const std::vector<std::string> order = {"empty", "regular", "dense"};
+  auto it = std::find(order.begin(), order.end(), column);
+  return static_cast<int>(it - order.begin());
+}
+
 }  // namespace
+
+std::string RunResult::column() const {
+  return sensor == "clean" ? suite : suite + " (" + sensor + " sensor)";
+}
+
+const std::vector<FailureCondition>& failure_conditions() {
+  static const std::vector<FailureCondition> conditions = {
+      {"training town", "town-a", "clean"},
+      {"new sensor", "town-a", "shifted"},
+      {"new town", "town-b", "clean"},
+  };
+  return conditions;
+}
 
 const std::vector<MetricSet>& metric_sets() {
   static const std::vector<MetricSet> sets = {
@@ -121,6 +200,17 @@ const std::vector<MetricSet>& metric_sets() {
        {{"stall_rate", "stall %", 100.0},
         {"start_delay_median_s", "delay median s", 1.0},
         {"start_delay_p90_s", "delay p90 s", 1.0}}},
+      {"lights",
+       "Traffic lights (green light %: light-controlled junctions entered on green, pooled over "
+       "a run's episodes; red-light violations per km; mean \u00b1 sd over seeds)",
+       {{"green_light_rate", "green light %", 100.0},
+        {"red_light_violations_per_km", "red / km", 1.0, 2}}},
+      {"failure",
+       "Failure modes",
+       {{"success_rate", "success %", 100.0},
+        {"collision_rate", "collision %", 100.0},
+        {"timeout_rate", "timeout %", 100.0}},
+       true},
   };
   return sets;
 }
@@ -211,6 +301,14 @@ RunResult load_result(const std::string& path) {
     if (!it->is_string()) throw DataError(path + ": key 'label' must be a string");
     if (!it->get<std::string>().empty()) r.label = it->get<std::string>();
   }
+  for (auto [key, field] : {std::pair<const char*, std::string*>{"town", &r.town},
+                            std::pair<const char*, std::string*>{"sensor", &r.sensor}}) {
+    auto it = doc.find(key);
+    if (it == doc.end()) continue;
+    if (!it->is_string() || it->get<std::string>().empty())
+      throw DataError(path + ": key '" + key + "' must be a non-empty string");
+    *field = it->get<std::string>();
+  }
   auto summary = doc.find("summary");
   if (summary == doc.end())
     throw DataError(path + ": missing key 'summary' (expected a results.json written by "
@@ -261,57 +359,47 @@ std::optional<CellStats> ReportTable::stats(const std::string& label, const std:
 }
 
 ReportTable build_report(const std::vector<RunResult>& runs) {
-  ReportTable t;
-  std::set<std::string> suites;
-  for (const RunResult& r : runs) {
-    if (std::find(t.labels.begin(), t.labels.end(), r.label) == t.labels.end())
-      t.labels.push_back(r.label);
-    suites.insert(r.suite);
-    t.cells[{r.label, r.suite}].push_back(&r);
-  }
-  t.suites.assign(suites.begin(), suites.end());
+  std::vector<const RunResult*> all;
+  for (const RunResult& r : runs) all.push_back(&r);
+  return group_runs(all, [](const RunResult& r) { return r.column(); });
+}
+
+ReportTable condition_table(const ReportTable& table, const FailureCondition& condition) {
+  std::vector<const RunResult*> in;
+  for (const RunResult* r : table.runs)
+    if (r->town == condition.town && r->sensor == condition.sensor) in.push_back(r);
+  ReportTable t = group_runs(in, [](const RunResult& r) {
+    const std::string prefix = r.town + "-";
+    return r.suite.size() > prefix.size() && r.suite.compare(0, prefix.size(), prefix) == 0
+               ? r.suite.substr(prefix.size())
+               : r.suite;
+  });
+  std::stable_sort(t.suites.begin(), t.suites.end(), [](const std::string& a, const std::string& b) {
+    return traffic_rank(a) < traffic_rank(b);
+  });
   return t;
 }
 
 std::string render_markdown(const ReportTable& table, const std::vector<MetricSet>& sets) {
   std::string out;
   for (const MetricSet& set : sets) {
-    // Rows of cells: header first, then one per label.
-    std::vector<std::vector<std::string>> rows;
-    std::vector<std::string> header = {"label"};
-    for (const auto& suite : table.suites)
-      for (const auto& m : set.metrics) header.push_back(markdown_escape(suite) + " " + m.header);
-    rows.push_back(header);
-    for (const auto& label : table.labels) {
-      std::vector<std::string> row = {markdown_escape(label)};
-      for (const auto& suite : table.suites)
-        for (const auto& m : set.metrics) row.push_back(format_cell(table.stats(label, suite, m.key), m.scale));
-      rows.push_back(row);
-    }
-    std::vector<size_t> width(header.size(), 3);
-    for (const auto& row : rows)
-      for (size_t c = 0; c < row.size(); ++c) width[c] = std::max(width[c], display_width(row[c]));
-
-    auto line = [&](const std::vector<std::string>& row) {
-      std::string s = "|";
-      for (size_t c = 0; c < row.size(); ++c) {
-        s += ' ';
-        s += pad(row[c], width[c], c > 0);
-        s += " |";
-      }
-      return s + "\n";
-    };
     if (!out.empty()) out += '\n';  // a blank line between tables
-    out += "## " + set.title + "\n\n";
-    out += line(rows[0]);
-    std::string rule = "|";
-    for (size_t c = 0; c < width.size(); ++c) {
-      rule += ' ';
-      rule.append(c == 0 ? width[c] : width[c] - 1, '-');  // numbers are right-aligned
-      rule += c == 0 ? " |" : ": |";
+    if (!set.by_condition) {
+      out += render_set_table(table, set, set.title);
+      continue;
     }
-    out += rule + "\n";
-    for (size_t i = 1; i < rows.size(); ++i) out += line(rows[i]);
+    std::string names, tables;
+    for (const FailureCondition& c : failure_conditions()) {
+      names += (names.empty() ? "" : ", ") + c.name + " (" + c.town + ", " + c.sensor + " sensor)";
+      ReportTable t = condition_table(table, c);
+      if (t.labels.empty()) continue;
+      if (!tables.empty()) tables += '\n';
+      tables += render_set_table(t, set,
+                                 set.title + ", " + c.name + " (" + c.town + ", " + c.sensor +
+                                     " sensor; %, mean \u00b1 sd over seeds)");
+    }
+    out += tables.empty() ? "## " + set.title + "\n\nno run in any condition: " + names + "\n"
+                          : tables;
   }
   return out;
 }

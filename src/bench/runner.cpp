@@ -18,6 +18,7 @@
 #include "core/progress.hpp"
 #include "core/worker_pool.hpp"
 #include "methods/method.hpp"
+#include "sense/sensor_shift.hpp"
 #include "world/town.hpp"
 
 namespace fs = std::filesystem;
@@ -44,6 +45,13 @@ bool load_record(const std::string& path, EpisodeResult* out) {
   }
 }
 
+// The strengths of a shifted sensor, as results.json records them.
+nlohmann::json sensor_shift_json(const EvalSettings& e) {
+  const SensorShift& s = e.sensor_shift;
+  return {{"seed", s.seed}, {"miss", s.miss}, {"jitter_m", s.jitter_m},
+          {"ghosts", s.ghosts}, {"fade", s.fade}};
+}
+
 std::string fmt(const char* f, double x) {
   char b[64];
   std::snprintf(b, sizeof b, f, x);
@@ -65,9 +73,18 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
   const size_t fb = world.renderer().frame_bytes();
   FrameBytes ring(frames ? span * fb : 0);
   size_t rendered = 0;
+  // The agent's sensor (eval.sensor): frame n of the episode is keyed by (sensor seed, the
+  // trial's traffic seed, n), so reruns and workers see the same noise.
+  const SensorShift* shift =
+      settings.eval.sensor == "shifted" ? &settings.eval.sensor_shift : nullptr;
   auto push_frame = [&] {
     if (!frames) return;
-    world.render(ring.data() + (rendered % span) * fb);
+    uint8_t* frame = ring.data() + (rendered % span) * fb;
+    if (shift)
+      render_sensor(world.renderer(), world.scene(), shift,
+                    sensor_frame_key(shift->seed, task.traffic_seed, rendered), frame);
+    else
+      world.render(frame);
     ++rendered;
   };
 
@@ -131,7 +148,7 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
     }
     sr = world.step(c);
     ++n;
-    r.red_light_violations += sr.ran_red_light;
+    count_junction_entry(r, sr.entered_light);
     const double v = world.ego().speed;
     const bool pf = world.truth().path_free;
     tracker.observe(v, pf);
@@ -182,7 +199,8 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
   nlohmann::json run = {{"agent", req.agent},     {"label", label},
                         {"suite", suite.name},    {"town", suite.town},
                         {"traffic", suite.traffic}, {"trials", trials},
-                        {"checkpoint", req.checkpoint}};
+                        {"checkpoint", req.checkpoint}, {"sensor", settings.eval.sensor}};
+  if (settings.eval.sensor != "clean") run["sensor_shift"] = sensor_shift_json(settings.eval);
   const std::string run_path = out + "/run.json";
   if (fs::exists(run_path)) {
     nlohmann::json prev;
@@ -191,11 +209,13 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
     } catch (const std::exception&) {
       throw DataError(run_path + " is damaged; remove it or use another --out");
     }
-    for (const char* key : {"agent", "suite", "trials", "checkpoint"})
-      if (prev.value(key, nlohmann::json()) != run[key])
+    // Folders written before eval.sensor existed hold clean runs.
+    if (!prev.contains("sensor")) prev["sensor"] = "clean";
+    for (const char* key : {"agent", "suite", "trials", "checkpoint", "sensor", "sensor_shift"})
+      if (prev.value(key, nlohmann::json()) != run.value(key, nlohmann::json()))
         throw ConfigError(out + " holds another evaluation (" + key + " " +
-                          prev.value(key, nlohmann::json()).dump() + ", now " + run[key].dump() +
-                          "); use another --out");
+                          prev.value(key, nlohmann::json()).dump() + ", now " +
+                          run.value(key, nlohmann::json()).dump() + "); use another --out");
   } else {
     write_file_atomic(run_path, run.dump(2) + "\n");
   }
@@ -295,10 +315,12 @@ std::string results_table(const nlohmann::json& res) {
   std::ostringstream o;
   o << "| agent | suite | episodes | success % | collision % | inertia % | timeout % | error % "
        "| stop-go events | stall % | start delay median / p90 (s) | red lights / km "
-       "| route completion % | mean speed (m/s) |\n";
-  o << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+       "| green light % | route completion % | mean speed (m/s) |\n";
+  o << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  const std::string sensor = res.value("sensor", "clean");
   o << "| " << res.at("label").get<std::string>() << " | " << res.at("suite").get<std::string>()
-    << " | " << s.at("episodes").get<long>();
+    << (sensor == "clean" ? "" : " (" + sensor + " sensor)") << " | "
+    << s.at("episodes").get<long>();
   if (s.at("infrastructure_failures").get<long>() > 0)
     o << " (+" << s.at("infrastructure_failures").get<long>() << " failed)";
   o << " | " << pct("success_rate") << " | " << pct("collision_rate") << " | "
@@ -306,6 +328,7 @@ std::string results_table(const nlohmann::json& res) {
     << s.at("stop_go_events").get<long>() << " | " << pct("stall_rate") << " | "
     << sec("start_delay_median_s") << " / " << sec("start_delay_p90_s") << " | "
     << fmt("%.2f", s.at("red_light_violations_per_km").get<double>()) << " | "
+    << (s.at("green_light_rate").is_null() ? std::string("-") : pct("green_light_rate")) << " | "
     << pct("route_completion") << " | " << fmt("%.2f", s.at("mean_speed").get<double>())
     << " |\n";
   return o.str();

@@ -39,7 +39,9 @@ void add_report(CLI::App& app) {
                   "evaluation output folders holding results.json, or folders under which they "
                   "lie (searched recursively)");
   sub->add_option("--metrics,-m", args->metrics,
-                  "error | outcomes | stopgo | all, or a comma-separated list (default: all)")
+                  "error | outcomes | stopgo | lights | failure | all, or a comma-separated "
+                  "list (default: all); failure: seed 001's failure-mode tables, one per "
+                  "condition (training town, new sensor, new town)")
       ->type_name("SETS");
   sub->add_option("--csv", args->csv, "also write a long-format CSV (label,suite,metric,mean,std,n)")
       ->type_name("FILE");

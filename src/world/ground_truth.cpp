@@ -17,6 +17,14 @@ int tl_code(char state) {
   }
 }
 
+int light_at_junction_entry(const std::string& prev_lane, const std::string& lane,
+                            char prev_light_state, double prev_light_distance) {
+  const bool was_internal = !prev_lane.empty() && prev_lane[0] == ':';
+  const bool now_internal = !lane.empty() && lane[0] == ':';
+  if (!now_internal || was_internal || !(prev_light_distance < kLightEntryReach)) return kTlNone;
+  return tl_code(prev_light_state);
+}
+
 bool is_minor_link(char state) { return !(state >= 'A' && state <= 'Z') || state == 'O'; }
 
 int command_of(char direction) {

@@ -84,4 +84,16 @@ struct TruthStep {
 
 TruthStep compute_ground_truth(const TruthInputs& in);
 
+// Junction entries through a light (SPEC section 5: red-light violations and traffic-light
+// compliance), one detection for both. A step entered a light-controlled junction when the ego
+// was on a normal lane before it (`prev_lane`) and is on a junction's internal lane after it
+// (`lane`; internal lane ids start with ':'), and the first signalised link of its path was
+// less than kLightEntryReach m ahead before the step (TruthStep::next_light_state and
+// next_light_distance of the previous step). Returns that link's TlCode as it was before the
+// step (kTlRed: a violation; kTlGreen or kTlGreenYield: entered on green), or kTlNone when the
+// step entered no junction, or one without a light (or with its light off).
+inline constexpr double kLightEntryReach = 10.0;
+int light_at_junction_entry(const std::string& prev_lane, const std::string& lane,
+                            char prev_light_state, double prev_light_distance);
+
 }  // namespace cd

@@ -596,10 +596,8 @@ StepResult World::check_events(bool present) {
       }
     }
   }
-  bool now_internal = !ego_.lane.empty() && ego_.lane[0] == ':';
-  bool was_internal = !prev_lane.empty() && prev_lane[0] == ':';
-  if (now_internal && !was_internal && tl_code(crossed_state) == kTlRed &&
-      crossed_distance < 10.0) {
+  r.entered_light = light_at_junction_entry(prev_lane, ego_.lane, crossed_state, crossed_distance);
+  if (r.entered_light == kTlRed) {
     r.ran_red_light = true;
     ++counters_.red_light_violations;
   }

@@ -59,6 +59,9 @@ struct StepResult {
   Outcome outcome = Outcome::Running;
   std::string collided_with;  // actor id when outcome == Collision
   bool ran_red_light = false; // this step entered a junction on red
+  // The light (TlCode) of the light-controlled junction this step entered, kTlNone when it
+  // entered none (light_at_junction_entry, world/ground_truth.hpp).
+  int entered_light = kTlNone;
 };
 
 struct WorldCounters {

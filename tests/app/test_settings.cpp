@@ -205,6 +205,43 @@ TEST(ConfigErrors, TrafficLevelListsAllowedValues) {
     EXPECT_TRUE(has(msg, allowed)) << "should list " << allowed << ": " << msg;
 }
 
+TEST(ConfigErrors, EvalSensorIsCleanOrShiftedAndItsStrengthsAreInRange) {
+  Settings defaults;
+  EXPECT_EQ(defaults.eval.sensor, "clean") << "every eval is clean unless asked";
+  std::string path;
+  std::string msg = config_error("[eval]\nsensor = \"foggy\"\n", &path);
+  ASSERT_FALSE(msg.empty()) << "sensor = foggy was accepted";
+  EXPECT_EQ(msg.find('\n'), std::string::npos) << "one line: " << msg;
+  EXPECT_TRUE(has(msg, "eval.sensor")) << msg;
+  EXPECT_TRUE(has(msg, "foggy")) << msg;
+  EXPECT_TRUE(has(msg, "clean") && has(msg, "shifted")) << msg;
+  EXPECT_TRUE(has(msg, path)) << msg;
+  for (const char* bad : {"sensor_miss = 1.5", "sensor_fade = -0.1", "sensor_ghosts = 50",
+                          "sensor_jitter_m = -1", "sensor_seed = -3"}) {
+    msg = config_error(std::string("[eval]\n") + bad + "\n");
+    const std::string key = std::string("eval.") + std::string(bad).substr(0, std::string(bad).find(' '));
+    EXPECT_TRUE(has(msg, key)) << bad << ": " << msg;
+  }
+  msg = config_error("[eval]\nsensor_mis = 0.2\n");
+  EXPECT_TRUE(has(msg, "eval.sensor_mis") && has(msg, "unknown")) << msg;
+
+  TempDir dir("cdtest-config");
+  const std::string ok = dir / "shifted.toml";
+  test::write_text(ok, "[eval]\nsensor = \"shifted\"\nsensor_seed = 7\nsensor_miss = 0.3\n"
+                       "sensor_jitter_m = 1.0\nsensor_ghosts = 2\nsensor_fade = 0.6\n");
+  Settings s = load_settings(ok);
+  EXPECT_EQ(s.eval.sensor, "shifted");
+  EXPECT_EQ(s.eval.sensor_shift.seed, 7u);
+  EXPECT_EQ(s.eval.sensor_shift.miss, 0.3);
+  EXPECT_EQ(s.eval.sensor_shift.jitter_m, 1.0);
+  EXPECT_EQ(s.eval.sensor_shift.ghosts, 2.0);
+  EXPECT_EQ(s.eval.sensor_shift.fade, 0.6);
+  // The same list writes and reads them back.
+  Settings back = settings_from_json(settings_to_json(s), "record");
+  EXPECT_EQ(settings_to_json(back), settings_to_json(s));
+  EXPECT_EQ(back.eval.sensor, "shifted");
+}
+
 TEST(ConfigErrors, InconsistentRangesAreRejected) {
   std::string msg = config_error("[collect]\nmin_route_m = 500\nmax_route_m = 200\n");
   EXPECT_TRUE(has(msg, "max_route_m")) << msg;

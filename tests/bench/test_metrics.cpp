@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/error.hpp"
+#include "world/ground_truth.hpp"
 
 namespace cd {
 namespace {
@@ -155,10 +156,84 @@ TEST(BenchMetrics, EpisodeRecordRoundTrip) {
   e.distance_m = 100.25;
   e.duration_s = 30;
   e.red_light_violations = 2;
+  e.light_passages = 5;
+  e.green_light_entries = 3;
   e.events = {{4.5, 1.2, true, false, "freed"}};
   EpisodeResult back = episode_from_json(episode_to_json(e));
   EXPECT_EQ(episode_to_json(back).dump(), episode_to_json(e).dump());
+  EXPECT_EQ(back.light_passages, 5);
+  EXPECT_EQ(back.green_light_entries, 3);
   EXPECT_THROW(episode_from_json(nlohmann::json{{"index", 1}}), DataError);
+  // A record written before the light counts existed is run again, not read as zero passages.
+  nlohmann::json old = episode_to_json(e);
+  old.erase("light_passages");
+  EXPECT_THROW(episode_from_json(old), DataError);
+}
+
+// One step of a hand-made drive: the lane before and after it and the first signalised link
+// of the path before it (SUMO state character, distance).
+struct DriveStep {
+  const char* prev_lane;
+  const char* lane;
+  char light;
+  double light_distance;
+};
+
+// Runs the steps through the world's detection and the episode's count, as run_episode does.
+EpisodeResult drive(const std::vector<DriveStep>& steps) {
+  EpisodeResult r;
+  for (const DriveStep& s : steps)
+    count_junction_entry(r, light_at_junction_entry(s.prev_lane, s.lane, s.light, s.light_distance));
+  return r;
+}
+
+TEST(BenchMetrics, GreenLightRateCountsLightControlledEntriesOnly) {
+  EpisodeResult r = drive({
+      {"e1_0", "e1_0", 'r', 3.0},         // waiting at a red light: no entry
+      {"e1_0", ":j1_0_0", 'r', 1.0},      // entered on red: a passage and a violation
+      {":j1_0_0", ":j1_0_1", 'G', 0.0},   // inside the junction: no new entry
+      {":j1_0_1", "e2_0", 'G', 1e9},      // leaving it
+      {"e2_0", ":j2_3_0", 'G', 2.0},      // entered on green
+      {":j2_3_0", "e3_0", 0, 1e9},
+      {"e3_0", ":j3_1_0", 0, 1e9},        // an unsignalised junction: no light ahead
+      {":j3_1_0", "e4_0", 0, 1e9},
+      {"e4_0", ":j4_0_0", 'G', 40.0},     // unsignalised, the next light 40 m further on
+      {":j4_0_0", "e5_0", 'G', 30.0},
+      {"e5_0", ":j5_2_0", 'g', 1.5},      // green without priority is green
+      {":j5_2_0", "e6_0", 0, 1e9},
+      {"e6_0", ":j6_0_0", 'y', 0.5},      // yellow: a passage, neither green nor a violation
+      {":j6_0_0", ":j6_0_1", 'O', 1e9},
+  });
+  EXPECT_EQ(r.light_passages, 4);
+  EXPECT_EQ(r.green_light_entries, 2);
+  EXPECT_EQ(r.red_light_violations, 1);
+  EXPECT_EQ(light_at_junction_entry("e1_0", ":j1_0_0", 'r', kLightEntryReach), kTlNone)
+      << "a light kLightEntryReach m away is not the junction being entered";
+  EXPECT_EQ(light_at_junction_entry("e1_0", ":j1_0_0", 'O', 1.0), kTlNone) << "light off";
+}
+
+TEST(BenchMetrics, SummaryPoolsGreenLightPassagesOverEpisodes) {
+  std::vector<EpisodeResult> eps(4);
+  for (EpisodeResult& e : eps) {
+    e.outcome = "success";
+    e.route_length_m = e.distance_m = 400;
+    e.duration_s = 60;
+  }
+  eps[0] = drive({{"a", ":j_0", 'r', 1.0}, {":j_0", "b", 0, 1e9}, {"b", ":k_0", 'G', 1.0}});
+  eps[0].outcome = "success";
+  eps[1].light_passages = 3;  // 3 of 3 on green
+  eps[1].green_light_entries = 3;
+  // eps[2] passed no light; eps[3] failed for the infrastructure and is left out.
+  eps[3].outcome = "infrastructure_failure";
+  eps[3].light_passages = 10;
+  nlohmann::json s = summarize(eps);
+  EXPECT_EQ(s["light_passages"], 5);
+  EXPECT_EQ(s["green_light_entries"], 4);
+  // Pooled: 4 / 5, not the mean of the episodes' rates ((0.5 + 1) / 2 = 0.75).
+  EXPECT_DOUBLE_EQ(s["green_light_rate"].get<double>(), 0.8);
+  nlohmann::json none = summarize({eps[2]});
+  EXPECT_EQ(none["light_passages"], 0);
+  EXPECT_TRUE(none["green_light_rate"].is_null()) << "no passage: no rate, not 0 or 1";
 }
 
 }  // namespace

@@ -143,8 +143,11 @@ TEST(ReportCli, SeedsGiveMeanAndSampleStdInCsvAndTable) {
   EXPECT_TRUE(has_line("BC,town-a-dense,error_rate,0.3,0.264575131106,3")) << test::read_text(csv);
   // Equal values: std 0.
   EXPECT_TRUE(has_line("BC,town-a-dense,collision_rate,0.04,0,3")) << test::read_text(csv);
-  // Each metric once though collision_rate is in two sets: 8 metrics x 2 suites + header.
-  EXPECT_EQ(lines.size(), 1u + 2 * 8) << test::read_text(csv);
+  // Each metric once though collision_rate is in three sets (error, outcomes, failure) and
+  // success and timeout in two: 10 metrics x 2 suites + header (green_light_rate without a
+  // value in these files: rows with n = 0).
+  EXPECT_EQ(lines.size(), 1u + 2 * 10) << test::read_text(csv);
+  EXPECT_TRUE(has_line("BC,town-a-dense,green_light_rate,,,0")) << test::read_text(csv);
   EXPECT_EQ(test::list_dir(dir / "out"), std::vector<std::string>{"report.csv"})
       << "no temporary file left beside the CSV";
 
@@ -332,6 +335,145 @@ TEST(ReportErrors, UnknownMetricsAndNoRunDir) {
   EXPECT_TRUE(has(line, "outcomes")) << "lists the choices: " << line;
   line = expect_one_line_error(test::run_cli({"report"}), "no RUN_DIR");
   EXPECT_TRUE(has(line, "RUN_DIR")) << line;
+}
+
+// A run of the failure-mode tables: town and sensor as eval writes them.
+nlohmann::json run(const std::string& label, const std::string& suite, const std::string& town,
+                   const std::string& sensor, double success, double collision, double timeout) {
+  nlohmann::json j = results("agent-" + label, suite,
+                             {{"success_rate", success}, {"collision_rate", collision},
+                              {"timeout_rate", timeout}, {"inertia_rate", 0.0}},
+                             label);
+  j["town"] = town;
+  j["sensor"] = sensor;
+  return j;
+}
+
+TEST(ReportFailureModes, OneTablePerConditionWithTrafficColumns) {
+  TempDir dir("cdtest-report");
+  put(dir / "runs/a/bc-s0", run("bc", "town-a-regular", "town-a", "clean", 0.6, 0.3, 0.1));
+  put(dir / "runs/a/bc-s1", run("bc", "town-a-regular", "town-a", "clean", 0.8, 0.1, 0.1));
+  put(dir / "runs/a/bc-s2", run("bc", "town-a-dense", "town-a", "clean", 0.4, 0.5, 0.1));
+  put(dir / "runs/a/bc-stopgo", run("bc", "town-a-stopgo", "town-a", "clean", 0.9, 0.0, 0.1));
+  put(dir / "runs/a/res-s0", run("res", "town-a-regular", "town-a", "clean", 0.9, 0.05, 0.05));
+  put(dir / "runs/s/bc-s0", run("bc", "town-a-regular", "town-a", "shifted", 0.2, 0.5, 0.3));
+  put(dir / "runs/s/bc-s1", run("bc", "town-a-regular", "town-a", "shifted", 0.4, 0.5, 0.1));
+  put(dir / "runs/t/bc-s0", run("bc", "town-b-dense", "town-b", "clean", 0.1, 0.7, 0.2));
+  put(dir / "runs/t/res-s0", run("res", "town-b-regular", "town-b", "clean", 0.5, 0.25, 0.25));
+  put(dir / "runs/u/bc-c", run("bc", "town-c-regular", "town-c", "clean", 0.0, 1.0, 0.0));
+  CommandResult r = test::run_cli({"report", dir / "runs", "--metrics", "failure"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+
+  // Seed 001's order: training conditions (table 7), new weather (8), new town (9).
+  const size_t t = r.out.find("## Failure modes, training town (town-a, clean sensor"),
+               s = r.out.find("## Failure modes, new sensor (town-a, shifted sensor"),
+               n = r.out.find("## Failure modes, new town (town-b, clean sensor");
+  ASSERT_NE(t, std::string::npos) << r.out;
+  ASSERT_NE(s, std::string::npos) << r.out;
+  ASSERT_NE(n, std::string::npos) << r.out;
+  EXPECT_LT(t, s);
+  EXPECT_LT(s, n);
+  EXPECT_FALSE(has(r.out, "town-c")) << "the adaptation town is in no condition\n" << r.out;
+  EXPECT_FALSE(has(r.out, "## Error")) << r.out;
+
+  // Training town: traffic columns without the town, NoCrash order, then the others.
+  std::vector<std::string> lines = test::split_lines(r.out.substr(t));
+  ASSERT_GE(lines.size(), 6u) << r.out;
+  std::vector<std::string> header = cells(lines[2]);
+  ASSERT_EQ(header.size(), 1u + 3 * 3) << r.out;
+  EXPECT_EQ(header[1], "regular success %");
+  EXPECT_EQ(header[2], "regular collision %");
+  EXPECT_EQ(header[3], "regular timeout %");
+  EXPECT_EQ(header[4], "dense success %");
+  EXPECT_EQ(header[7], "stopgo success %");
+  std::vector<std::string> bc = cells(table_row(r.out, "Failure modes, training town", "bc"));
+  ASSERT_EQ(bc.size(), 10u) << r.out;
+  // Two seeds on regular: 70 +- 14.1 (sqrt(2) * 10), 20 +- 14.1, 10 +- 0; the shifted runs
+  // are not seeds of it.
+  EXPECT_EQ(bc[1], "70.0 \u00b1 14.1") << r.out;
+  EXPECT_EQ(bc[2], "20.0 \u00b1 14.1") << r.out;
+  EXPECT_EQ(bc[3], "10.0 \u00b1 0.0") << r.out;
+  EXPECT_EQ(bc[4], "40.0") << r.out;
+  EXPECT_EQ(bc[7], "90.0") << r.out;
+  std::vector<std::string> res = cells(table_row(r.out, "Failure modes, training town", "res"));
+  ASSERT_EQ(res.size(), 10u) << r.out;
+  EXPECT_EQ(res[1], "90.0");
+  EXPECT_EQ(res[4], kDash) << "res has no dense run";
+
+  // New sensor: the shifted runs only, bc alone.
+  std::vector<std::string> sbc = cells(table_row(r.out, "Failure modes, new sensor", "bc"));
+  ASSERT_EQ(sbc.size(), 4u) << r.out;
+  EXPECT_EQ(sbc[1], "30.0 \u00b1 14.1");
+  EXPECT_EQ(sbc[2], "50.0 \u00b1 0.0");
+  EXPECT_EQ(sbc[3], "20.0 \u00b1 14.1");
+  EXPECT_EQ(table_row(r.out, "Failure modes, new sensor", "res"), "") << r.out;
+
+  // New town: town-b, regular before dense.
+  std::vector<std::string> header_b = cells(test::split_lines(r.out.substr(n))[2]);
+  ASSERT_EQ(header_b.size(), 7u) << r.out;
+  EXPECT_EQ(header_b[1], "regular success %");
+  EXPECT_EQ(header_b[4], "dense success %");
+  std::vector<std::string> tbc = cells(table_row(r.out, "Failure modes, new town", "bc"));
+  ASSERT_EQ(tbc.size(), 7u) << r.out;
+  EXPECT_EQ(tbc[1], kDash);
+  EXPECT_EQ(tbc[5], "70.0");
+  std::vector<std::string> tres = cells(table_row(r.out, "Failure modes, new town", "res"));
+  EXPECT_EQ(tres[3], "25.0");
+}
+
+TEST(ReportFailureModes, ShiftedRunsHaveTheirOwnColumnsAndTheLightsTable) {
+  TempDir dir("cdtest-report");
+  put(dir / "runs/c0", run("bc", "town-a-regular", "town-a", "clean", 0.8, 0.1, 0.1));
+  put(dir / "runs/s0", run("bc", "town-a-regular", "town-a", "shifted", 0.2, 0.6, 0.2));
+  nlohmann::json lit = run("cim", "town-a-regular", "town-a", "clean", 1.0, 0.0, 0.0);
+  lit["summary"]["green_light_rate"] = 0.75;
+  put(dir / "runs/l0", lit);
+  lit["summary"]["green_light_rate"] = 0.25;
+  put(dir / "runs/l1", lit);
+  nlohmann::json none = run("cs", "town-a-regular", "town-a", "clean", 1.0, 0.0, 0.0);
+  none["summary"]["green_light_rate"] = nullptr;  // no light passed
+  put(dir / "runs/n0", none);
+  const std::string csv = dir / "report.csv";
+  CommandResult r = test::run_cli({"report", dir / "runs", "--csv", csv});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  std::vector<std::string> bc = cells(table_row(r.out, "Outcomes", "bc"));
+  ASSERT_EQ(bc.size(), 7u) << "clean and shifted are two column groups\n" << r.out;
+  EXPECT_EQ(bc[1], "80.0") << r.out;
+  EXPECT_EQ(bc[4], "20.0") << r.out;
+  EXPECT_TRUE(has(r.out, "town-a-regular (shifted sensor) success %")) << r.out;
+  const std::string text = test::read_text(csv);
+  EXPECT_TRUE(has(text, "bc,town-a-regular (shifted sensor),success_rate,0.2,,1\n")) << text;
+  EXPECT_TRUE(has(text, "bc,town-a-regular,success_rate,0.8,,1\n")) << text;
+
+  // All sets by default: the lights table (green-light rate mean +- sd over seeds, n/a
+  // without passages) and the failure modes after the stop-and-go table.
+  const size_t g = r.out.find("## Traffic lights"), f = r.out.find("## Failure modes, training");
+  ASSERT_NE(g, std::string::npos) << r.out;
+  ASSERT_NE(f, std::string::npos) << r.out;
+  EXPECT_LT(r.out.find("## Stop-and-go"), g);
+  EXPECT_LT(g, f);
+  std::vector<std::string> cim = cells(table_row(r.out, "Traffic lights", "cim"));
+  ASSERT_GE(cim.size(), 3u) << r.out;
+  EXPECT_EQ(cim[1], "50.0 \u00b1 35.4") << r.out;  // sqrt(2) * 25
+  EXPECT_EQ(cim[2], "0.10 \u00b1 0.00") << "red lights per km, two decimals";
+  EXPECT_EQ(cells(table_row(r.out, "Traffic lights", "cs"))[1], "n/a") << r.out;
+  EXPECT_TRUE(has(text, "cim,town-a-regular,green_light_rate,0.5,0.353553390593,2\n")) << text;
+}
+
+TEST(ReportFailureModes, NoRunInAnyConditionSaysSo) {
+  TempDir dir("cdtest-report");
+  put(dir / "run", run("bc", "town-c-regular", "town-c", "clean", 0.5, 0.5, 0.0));
+  CommandResult r = test::run_cli({"report", dir / "run", "--metrics", "failure"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_TRUE(test::starts_with(r.out, "## Failure modes\n\nno run in any condition: training "
+                                       "town (town-a, clean sensor)"))
+      << r.out;
+  // A malformed sensor is named.
+  nlohmann::json bad = run("bc", "town-a-regular", "town-a", "clean", 0.5, 0.5, 0.0);
+  bad["sensor"] = 3;
+  put(dir / "bad", bad);
+  std::string line = expect_one_line_error(test::run_cli({"report", dir / "bad"}), "sensor 3");
+  EXPECT_TRUE(has(line, "'sensor'")) << line;
 }
 
 }  // namespace

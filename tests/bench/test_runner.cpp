@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "../support/test_support.hpp"
 #include "agents/agent.hpp"
@@ -118,6 +119,56 @@ TEST(BenchEpisode, LeaderDrivesOffAndTheExpertFollows) {
   auto expert = make_agent("expert", "", s, &world);
   EpisodeResult r = run_episode(world, *expert, task, s);
   EXPECT_EQ(r.outcome, "success");
+}
+
+// Brakes and keeps every frame it is shown; with `world`, also what the world itself renders
+// at that moment (act() is called right after the runner made the observation).
+class FrameAgent : public Agent {
+ public:
+  explicit FrameAgent(const World* world = nullptr) : world_(world) {}
+  std::string name() const override { return "frames"; }
+  Control act(const Observation& obs) override {
+    const size_t n = size_t(obs.channels) * obs.height * obs.width;
+    seen.emplace_back(obs.frames.back(), obs.frames.back() + n);
+    if (world_) {
+      truth.emplace_back(n);
+      world_->render(truth.back().data());
+    }
+    return {0.0, 1.0};
+  }
+  std::vector<std::vector<uint8_t>> seen, truth;
+
+ private:
+  const World* world_;
+};
+
+// eval.sensor in the episode runner: the clean sensor is the world's own BEV; the shifted one
+// gives the agent other frames, the same ones on a rerun, others for another sensor seed, and
+// leaves the world (what the expert and the ground truth use) untouched.
+TEST(BenchEpisode, SensorShiftReachesTheAgentOnlyAndIsDeterministic) {
+  Settings s = test_settings("regular");
+  World world(s);
+  Task task = world.sample_scenario_task(15, "route", 150, 300);
+  task.timeout_s = 3;
+  FrameAgent clean(&world);
+  EpisodeResult rc = run_episode(world, clean, task, s);
+  ASSERT_GT(clean.seen.size(), 10u);
+  EXPECT_EQ(clean.seen, clean.truth) << "the clean sensor is the world's BEV";
+
+  s.eval.sensor = "shifted";
+  FrameAgent a(&world), b, other;
+  EpisodeResult ra = run_episode(world, a, task, s);
+  run_episode(world, b, task, s);
+  ASSERT_EQ(a.seen.size(), clean.seen.size());
+  EXPECT_EQ(a.truth, clean.truth) << "the world is the same whatever the agent's sensor";
+  EXPECT_EQ(episode_to_json(ra).dump(), episode_to_json(rc).dump()) << "a braking agent's episode";
+  EXPECT_EQ(a.seen, b.seen) << "same sensor seed, task, trial and steps: same bytes";
+  int differ = 0;
+  for (size_t i = 0; i < a.seen.size(); ++i) differ += a.seen[i] != clean.seen[i];
+  EXPECT_GT(differ, static_cast<int>(a.seen.size()) / 2) << "most shifted frames differ";
+  s.eval.sensor_shift.seed = 99;
+  run_episode(world, other, task, s);
+  EXPECT_NE(other.seen, a.seen) << "another sensor seed, other noise";
 }
 
 // Cross traffic through the junction in front of an ego waiting first in line at a red

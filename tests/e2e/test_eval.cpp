@@ -165,5 +165,57 @@ TEST(BenchEval, BadRequestsGiveOneLineAndExitOne) {
   EXPECT_EQ(test::read_text(dir / "o5/results.json"), before);
 }
 
+// eval.sensor: results.json says which sensor the agents had; the privileged expert never
+// sees the shift (same episodes); a folder of one sensor is not resumed with the other; a bad
+// value is one line naming the key. Every eval records the traffic-light passages.
+TEST(BenchEval, SensorIsRecordedTheExpertNeverSeesTheShiftAndFoldersDoNotMix) {
+  TempDir dir("cdtest-eval");
+  const std::string clean = test::write_test_config(dir);
+  const std::string shifted = test::write_test_config(
+      dir, "empty", "\n[eval]\nsensor = \"shifted\"\nsensor_seed = 4\n", "shifted.toml");
+  auto a = eval_cli(clean, "quickstart", dir / "clean");
+  auto b = eval_cli(shifted, "quickstart", dir / "shifted");
+  ASSERT_EQ(a.exit_code, 0) << a.describe();
+  ASSERT_EQ(b.exit_code, 0) << b.describe();
+  EXPECT_NE(b.out.find("| expert | quickstart (shifted sensor) |"), std::string::npos) << b.out;
+  nlohmann::json ra = read_json(dir / "clean/results.json");
+  nlohmann::json rb = read_json(dir / "shifted/results.json");
+  EXPECT_EQ(ra["sensor"], "clean");
+  EXPECT_FALSE(ra.contains("sensor_shift"));
+  EXPECT_EQ(rb["sensor"], "shifted");
+  EXPECT_EQ(rb["sensor_shift"]["seed"], 4);
+  EXPECT_DOUBLE_EQ(rb["sensor_shift"]["miss"].get<double>(), 0.15);
+  EXPECT_EQ(ra["episodes"], rb["episodes"]) << "the expert drives on the world, not the BEV";
+  EXPECT_EQ(ra["summary"], rb["summary"]);
+
+  // Light passages: the red-light start is one at least; the rate is the pooled share.
+  const nlohmann::json& s = ra["summary"];
+  int passages = 0, green = 0;
+  for (const auto& e : ra["episodes"]) {
+    EXPECT_LE(e["green_light_entries"].get<int>(), e["light_passages"].get<int>());
+    EXPECT_EQ(e["red_light_violations"], 0) << "the expert runs no red light";
+    passages += e["light_passages"].get<int>();
+    green += e["green_light_entries"].get<int>();
+  }
+  EXPECT_GE(passages, 1) << "the quickstart suite's red-light task passes a light";
+  EXPECT_EQ(s["light_passages"], passages);
+  EXPECT_EQ(s["green_light_entries"], green);
+  EXPECT_DOUBLE_EQ(s["green_light_rate"].get<double>(), double(green) / passages);
+
+  auto refused = test::run_cli(test::eval_args(shifted, "expert", "", "quickstart", dir / "clean", 1));
+  EXPECT_EQ(refused.exit_code, 1) << refused.describe();
+  EXPECT_EQ(test::split_lines(refused.err).size(), 1u) << refused.err;
+  EXPECT_NE(refused.err.find("another evaluation (sensor"), std::string::npos) << refused.err;
+
+  const std::string bad = test::write_test_config(dir, "empty", "\n[eval]\nsensor = \"rainy\"\n",
+                                                  "bad.toml");
+  auto r = test::run_cli(test::eval_args(bad, "expert", "", "quickstart", dir / "bad", 1));
+  EXPECT_EQ(r.exit_code, 1) << r.describe();
+  ASSERT_EQ(test::split_lines(r.err).size(), 1u) << r.err;
+  EXPECT_NE(r.err.find("eval.sensor"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("rainy"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "bad")) << "nothing written on a config error";
+}
+
 }  // namespace
 }  // namespace cd

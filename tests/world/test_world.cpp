@@ -486,6 +486,8 @@ TEST(WorldCollision, OncomingVehicleOnTheOppositeLaneIsNoCollision) {
 // with a red light less than 10 m ahead, after it the ego is inside the junction.
 struct RedLightOracle {
   int violations = 0;
+  int passages = 0;
+  int entered = kTlNone;
   std::string lane;
   int tl_state = kTlNone;
   double tl_distance = 0;
@@ -500,6 +502,9 @@ struct RedLightOracle {
     bool now_internal = !w.ego().lane.empty() && w.ego().lane[0] == ':';
     bool ran = !was_internal && now_internal && tl_state == kTlRed && tl_distance < 10.0;
     if (ran) ++violations;
+    // Any light state: the junction entry the green-light rate counts (kTlNone: none).
+    entered = !was_internal && now_internal && tl_distance < 10.0 ? tl_state : kTlNone;
+    passages += entered != kTlNone;
     return ran;
   }
 };
@@ -507,7 +512,7 @@ struct RedLightOracle {
 TEST(WorldRedLight, FullThrottleRunsRedLightsAndTheyAreCounted) {
   Settings s = test_settings();
   World w(s);
-  int total_reported = 0, total_oracle = 0;
+  int total_reported = 0, total_oracle = 0, total_passages = 0;
   for (uint64_t seed = 0; seed < 30; ++seed) {
     w.reset(w.sample_task(seed, 100, 200));
     RedLightOracle oracle;
@@ -524,12 +529,15 @@ TEST(WorldRedLight, FullThrottleRunsRedLightsAndTheyAreCounted) {
           << oracle.tl_distance << " m";
       EXPECT_EQ(w.counters().red_light_violations, before + (r.ran_red_light ? 1 : 0))
           << "seed " << seed << " step " << i;
+      EXPECT_EQ(r.entered_light, oracle.entered) << "seed " << seed << " step " << i;
     }
+    total_passages += oracle.passages;
     EXPECT_EQ(w.counters().red_light_violations, oracle.violations) << "seed " << seed;
     total_reported += w.counters().red_light_violations;
     total_oracle += oracle.violations;
   }
   EXPECT_GT(total_oracle, 0) << "full throttle through 30 tasks never met a red light";
+  EXPECT_GT(total_passages, total_oracle) << "full throttle never entered a light on green";
   EXPECT_EQ(total_reported, total_oracle);
 }
 
