@@ -16,8 +16,8 @@ PlannerOptions planner_defaults(const std::string& env, PlannerOptions o) {
   };
   // Chosen for a 2-core CPU: the cost of a query is samples x horizon x iterations env steps.
   static const Default table[] = {
-      {"halfcheetah", 64, 16, 1, 0.5}, {"hopper", 64, 24, 1, 0.4}, {"ant", 48, 16, 1, 0.5},
-      {"reacher", 32, 10, 1, 0.5},     {"humanoid", 64, 16, 1, 0.3},
+      {"halfcheetah", 64, 16, 1, 0.5}, {"hopper", 64, 48, 1, 0.4}, {"ant", 48, 16, 1, 0.5},
+      {"reacher", 64, 25, 1, 0.3},     {"humanoid", 64, 16, 1, 0.3},
   };
   const Default* d = nullptr;
   for (const Default& entry : table)
@@ -55,7 +55,11 @@ double PlannerExpert::rollout(std::span<const double> state, const std::vector<d
     const StepResult r = sim_.step(std::span<const double>(plan.data() + h * dim_, dim_));
     ++simulated_steps_;
     total += r.reward;
-    if (r.terminated) break;  // the healthy rewards it would have earned are lost
+    if (r.terminated) {
+      // Falling ends Gym's episode: worse than any reward a rollout can gain on the way down.
+      total -= 1000.0;
+      break;
+    }
   }
   return total;
 }
