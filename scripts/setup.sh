@@ -10,6 +10,7 @@ packages=(
   libhdf5-dev
   libtomlplusplus-dev libcli11-dev libspdlog-dev nlohmann-json3-dev
   libstb-dev
+  libmujoco-dev libosmesa6-dev
   libgtest-dev libbenchmark-dev
   python3 python3-numpy python3-h5py python3-statsmodels python3-torch
 )

@@ -4,6 +4,8 @@
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "collect/collect.hpp"
+#include "core/error.hpp"
+#include "mujoco/collect.hpp"
 
 namespace cd::cli {
 
@@ -14,7 +16,39 @@ struct CollectArgs {
   int episodes = 0, workers = 0;
   int64_t seed = -1;
   bool noise = false;
+  // MuJoCo-Image (--env)
+  std::string env;
+  int size = 64, max_steps = 0, planner_samples = 0, planner_horizon = 0;
 };
+
+// collect --env NAME: the MuJoCo-Image domain; the driving options do not apply.
+void collect_mujoco(const CollectArgs& a) {
+  for (const auto& [given, flag] : {std::pair{!a.config.empty(), "--config"},
+                                    {!a.town.empty(), "--town"},
+                                    {!a.traffic.empty(), "--traffic"},
+                                    {!a.png.empty(), "--png"}}) {
+    if (given) throw ConfigError(std::string(flag) + " is a driving option; it does not apply with --env");
+  }
+  mj::CollectOptions o;
+  o.env = a.env;
+  o.out = a.out;
+  if (a.episodes > 0) o.episodes = a.episodes;
+  if (a.workers > 0) o.workers = a.workers;
+  if (a.seed >= 0) o.seed = static_cast<uint64_t>(a.seed);
+  o.width = o.height = a.size;
+  o.max_steps = a.max_steps;
+  o.noise.enabled = a.noise;
+  o.planner.samples = a.planner_samples;
+  o.planner.horizon = a.planner_horizon;
+  const mj::CollectReport r = mj::collect(o);
+  double mean = 0;
+  for (double v : r.returns) mean += v / std::max<size_t>(1, r.returns.size());
+  std::printf("episodes in %s: %d (recorded now: %d, kept: %d), mean return %.1f\n", o.out.c_str(),
+              r.episodes, r.recorded_now, r.episodes - r.recorded_now, mean);
+  if (r.recorded_now > 0 && r.seconds > 0)
+    std::printf("  recorded %ld frames in %.1f s (%.1f frames/s)\n", r.frames, r.seconds,
+                r.frames / r.seconds);
+}
 
 void print_collect_summary(const CollectReport& r, const std::string& out) {
   std::map<std::string, int> by_outcome;
@@ -40,7 +74,8 @@ void print_collect_summary(const CollectReport& r, const std::string& out) {
 
 void add_collect(CLI::App& app) {
   auto args = std::make_shared<CollectArgs>();
-  CLI::App* sub = app.add_subcommand("collect", "record expert driving episodes to HDF5");
+  CLI::App* sub = app.add_subcommand(
+      "collect", "record expert episodes to HDF5 (driving, or MuJoCo-Image with --env)");
   sub->add_option("--config,-c", args->config, "TOML config (default: built-in quickstart)");
   sub->add_option("--episodes,-n", args->episodes, "number of episodes (collect.episodes)")
       ->check(CLI::PositiveNumber);
@@ -53,7 +88,26 @@ void add_collect(CLI::App& app) {
       ->check(CLI::IsMember({"empty", "regular", "dense"}));
   sub->add_flag("--noise", args->noise, "inject action noise (collect.noise.enabled)");
   sub->add_option("--png", args->png, "also write every BEV frame as PNG under this folder");
+  CLI::Option* env = sub->add_option("--env", args->env,
+                  "MuJoCo-Image environment (halfcheetah, hopper, ant, reacher, humanoid) "
+                  "instead of driving; needs --out");
+  sub->add_option("--size", args->size, "with --env: frame width and height in pixels")
+      ->check(CLI::Range(8, 1024))
+      ->needs(env);
+  sub->add_option("--max-steps", args->max_steps,
+                  "with --env: end episodes after this many steps (default: the env's limit)")
+      ->check(CLI::PositiveNumber)
+      ->needs(env);
+  sub->add_option("--planner-samples", args->planner_samples,
+                  "with --env: the expert planner's rollouts per step (default per env)")
+      ->check(CLI::PositiveNumber)
+      ->needs(env);
+  sub->add_option("--planner-horizon", args->planner_horizon,
+                  "with --env: the expert planner's rollout length in steps (default per env)")
+      ->check(CLI::PositiveNumber)
+      ->needs(env);
   sub->callback([args] {
+    if (!args->env.empty()) return collect_mujoco(*args);
     Settings s = settings_from(args->config);
     if (args->episodes > 0) s.collect.episodes = args->episodes;
     if (args->workers > 0) s.collect.workers = args->workers;

@@ -1,6 +1,7 @@
 #pragma once
 // Seeded randomness with results fixed by this code alone (std:: distributions differ between
 // library versions, which would break "same seed, same bytes").
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <utility>
@@ -44,6 +45,14 @@ class Rng {
   static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
   uint64_t s_[4];
 };
+
+// A standard normal draw (Box-Muller, two uniforms per draw, no cached second value): fixed by
+// this code, unlike std::normal_distribution.
+inline double standard_normal(Rng& rng) {
+  const double u1 = 1.0 - rng.uniform();  // (0, 1]: log stays finite
+  const double u2 = rng.uniform();
+  return std::sqrt(-2.0 * std::log(u1)) * std::cos(6.283185307179586 * u2);
+}
 
 // Fisher-Yates from the back: every permutation of v from rng. The one shuffle of the project
 // (epoch orders, validation splits); its exact sequence of draws is part of "same bytes".

@@ -1,0 +1,190 @@
+#include "mujoco/collect.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "collect/collect.hpp"
+#include "collect/expert_episode.hpp"
+#include "core/atomic_file.hpp"
+#include "core/error.hpp"
+#include "core/progress.hpp"
+#include "core/worker_pool.hpp"
+
+namespace fs = std::filesystem;
+
+namespace cd::mj {
+
+namespace {
+
+constexpr int kMaxAttempts = 2;  // a worker that dies is retried once per episode
+
+bool episode_complete(const std::string& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) return false;
+  try {
+    read_mujoco_episode_meta(path);
+    return true;
+  } catch (const Error&) {
+    return false;  // a damaged file is recorded again
+  }
+}
+
+void validate(const CollectOptions& o) {
+  env_spec(o.env);  // an unknown env: one line, before any work
+  if (o.out.empty()) throw ConfigError("collect --env needs an output folder (--out DIR)");
+  if (o.episodes < 1) throw ConfigError("collect: --episodes must be at least 1");
+  if (o.workers < 1) throw ConfigError("collect: --workers must be at least 1");
+  if (o.max_steps < 0) throw ConfigError("collect: --max-steps must not be negative");
+  const NoiseOptions& n = o.noise;
+  if (n.rate < 0 || n.rate > 1 || n.min_steps < 1 || n.max_steps < n.min_steps || n.sigma < 0)
+    throw ConfigError("collect: noise settings out of range");
+}
+
+}  // namespace
+
+MujocoEpisode record_episode(const CollectOptions& o, int index) {
+  const uint64_t seed = episode_seed(o.seed, index);
+  EnvOptions env_options;
+  env_options.width = o.width;
+  env_options.height = o.height;
+  Env env(o.env, env_options);
+  PlannerOptions planner = o.planner;
+  planner.seed = derive_seed(seed, 1);
+  PlannerExpert expert(o.env, planner);
+  Rng noise_rng(derive_seed(seed, 2));
+  const std::vector<double> low = env.action_low(), high = env.action_high();
+  const int limit = o.max_steps > 0 ? std::min(o.max_steps, env.max_steps()) : env.max_steps();
+
+  MujocoEpisode e;
+  e.env = o.env;
+  e.seed = seed;
+  e.dt = env.dt();
+  e.frame_skip = env.frame_skip();
+  e.channels = env.channels();
+  e.height = env.height();
+  e.width = env.width();
+  e.action_dim = env.action_dim();
+  e.state_dim = env.state_dim();
+  e.extra["expert"] = expert.describe();
+  char noise_line[128];
+  std::snprintf(noise_line, sizeof noise_line, "%s rate=%g steps=%d..%d sigma=%g",
+                o.noise.enabled ? "on" : "off", o.noise.rate, o.noise.min_steps,
+                o.noise.max_steps, o.noise.sigma);
+  e.extra["noise_injection"] = noise_line;
+
+  Frame frame = env.reset(seed);
+  int noise_left = 0;
+  for (int t = 0; t < limit; ++t) {
+    const std::vector<double> state = env.state();
+    const std::vector<double> label = expert.act(state);
+    std::vector<double> executed = label;
+    if (o.noise.enabled) {
+      if (noise_left == 0 && noise_rng.uniform() < o.noise.rate) {
+        noise_left = o.noise.min_steps +
+                     static_cast<int>(noise_rng.below(o.noise.max_steps - o.noise.min_steps + 1));
+      }
+      if (noise_left > 0) {
+        for (size_t j = 0; j < executed.size(); ++j) {
+          const double half = 0.5 * (high[j] - low[j]);
+          executed[j] = std::clamp(executed[j] + o.noise.sigma * half * standard_normal(noise_rng),
+                                   low[j], high[j]);
+        }
+        --noise_left;
+        e.noise.push_back(1);
+      } else {
+        e.noise.push_back(0);
+      }
+    } else {
+      e.noise.push_back(0);
+    }
+    e.obs.insert(e.obs.end(), frame.begin(), frame.end());
+    for (double v : state) e.state.push_back(static_cast<float>(v));
+    for (double v : label) e.action.push_back(static_cast<float>(v));
+    const StepResult r = env.step(executed);
+    e.reward.push_back(static_cast<float>(r.reward));
+    e.episode_return += r.reward;
+    if (r.terminated) {
+      e.outcome = "terminated";
+      break;
+    }
+    env.render(frame.data());
+  }
+  if (e.outcome.empty()) e.outcome = "truncated";
+  return e;
+}
+
+CollectReport collect(const CollectOptions& o) {
+  validate(o);
+  { Env probe(o.env); }  // a missing model file: one line, before any worker starts
+  std::error_code ec;
+  fs::create_directories(o.out, ec);
+  if (ec) throw IoError("cannot create output folder " + o.out + ": " + ec.message());
+  remove_stale_temporaries(o.out);
+
+  std::vector<int> todo;
+  for (int i = 0; i < o.episodes; ++i)
+    if (!episode_complete(o.out + "/" + episode_file_name(i))) todo.push_back(i);
+
+  CollectReport report;
+  const auto t0 = std::chrono::steady_clock::now();
+  std::unique_ptr<Progress> progress;
+  if (!o.quiet)
+    progress = std::make_unique<Progress>("collect " + o.env, o.episodes,
+                                          o.episodes - static_cast<long>(todo.size()));
+  // Each episode runs in a fresh fork: its env and GL context are made there, never inherited.
+  auto setup = [] {};
+  auto job = [&](int i) {
+    MujocoEpisode e = record_episode(o, i);
+    write_mujoco_episode(o.out + "/" + episode_file_name(i), e);
+    char note[64];
+    std::snprintf(note, sizeof note, "%zu %.3f", e.frames(), e.episode_return);
+    return std::string(note);
+  };
+  auto on_done = [&](int i, const std::string& note) {
+    std::istringstream in(note);
+    long frames = 0;
+    double ret = 0;
+    in >> frames >> ret;
+    report.frames += frames;
+    char line[96];
+    std::snprintf(line, sizeof line, "episode %d: %ld steps, return %.1f", i, frames, ret);
+    if (progress) progress->advance(1, line);
+  };
+  const PoolReport pool =
+      run_worker_pool_with_retries(o.workers, todo, kMaxAttempts, setup, job, on_done);
+  if (progress) progress->finish();
+  report.recorded_now = static_cast<int>(todo.size() - pool.failed.size());
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (!pool.failed.empty()) {
+    throw Error("collection failed for " + std::to_string(pool.failed.size()) + " episode(s) (" +
+                pool.first_error + "); rerun the same command to resume");
+  }
+
+  nlohmann::json episodes = nlohmann::json::array();
+  for (int i = 0; i < o.episodes; ++i) {
+    const MujocoEpisode m = read_mujoco_episode_meta(o.out + "/" + episode_file_name(i));
+    report.returns.push_back(m.episode_return);
+    episodes.push_back({{"file", episode_file_name(i)},
+                        {"seed", m.seed},
+                        {"outcome", m.outcome},
+                        {"return", m.episode_return}});
+  }
+  report.episodes = o.episodes;
+  nlohmann::json manifest = {{"env", o.env},
+                             {"seed", o.seed},
+                             {"episodes", episodes},
+                             {"width", o.width},
+                             {"height", o.height},
+                             {"max_steps", o.max_steps},
+                             {"noise", o.noise.enabled}};
+  write_file_atomic(o.out + "/collect.json", manifest.dump(2) + "\n");
+  return report;
+}
+
+}  // namespace cd::mj

@@ -1,0 +1,63 @@
+#pragma once
+// Experts for the MuJoCo-Image environments: state -> action, queryable at any state (DAgger).
+//
+// The expert here is a sampling-based planner (MPPI) on the true simulator: at each query it
+// rolls out `samples` perturbed action sequences of `horizon` steps from the given state in a
+// private copy of the env (set_state), and returns the first action of their reward-weighted
+// mean. No training, no torch; its cost is samples x horizon env steps per query. Its previous
+// plan, shifted by one step, seeds the next query (warm start), so a run of queries along an
+// episode is cheaper to make good than isolated ones; every draw comes from its seed.
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "core/rng.hpp"
+#include "mujoco/env.hpp"
+
+namespace cd::mj {
+
+class Expert {
+ public:
+  virtual ~Expert() = default;
+  // The action for `state` (qpos then qvel), within the env's ctrlrange.
+  virtual std::vector<double> act(std::span<const double> state) = 0;
+  virtual std::string describe() const = 0;  // one line: kind and settings (recorded in data)
+};
+
+struct PlannerOptions {
+  int samples = 0;           // rollouts per query; 0: the env's default
+  int horizon = 0;           // env steps per rollout; 0: the env's default
+  int iterations = 0;        // refinements per query; 0: the env's default
+  double sigma = 0;          // exploration noise, fraction of the half ctrlrange; 0: default
+  double temperature = 0.1;  // weights exp((R - max R) / (temperature (max R - min R)))
+  uint64_t seed = 0;
+};
+
+// The options with the env's defaults filled in where a field is 0.
+PlannerOptions planner_defaults(const std::string& env, PlannerOptions options = {});
+
+class PlannerExpert : public Expert {
+ public:
+  PlannerExpert(const std::string& env, const PlannerOptions& options);
+  std::vector<double> act(std::span<const double> state) override;
+  std::string describe() const override;
+  // Forgets the warm start (a new episode).
+  void reset();
+  // Env steps simulated so far (the planner's cost).
+  long simulated_steps() const { return simulated_steps_; }
+
+ private:
+  double rollout(std::span<const double> state, const std::vector<double>& plan);
+
+  Env sim_;
+  PlannerOptions options_;
+  std::vector<double> low_, high_;
+  int dim_;
+  std::vector<double> mean_;  // horizon x dim, the current plan
+  Rng rng_;
+  long simulated_steps_ = 0;
+};
+
+}  // namespace cd::mj
