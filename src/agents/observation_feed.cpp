@@ -6,8 +6,11 @@
 
 namespace cd {
 
-ObservationFeed::ObservationFeed(const World& world, const Agent& agent)
+ObservationFeed::ObservationFeed(const World& world, const Agent& agent, const SensorShift* shift,
+                                 uint64_t episode_key)
     : world_(world),
+      shift_(shift),
+      episode_key_(episode_key),
       k_(std::max(1, agent.history())),
       stride_(std::max(1, agent.history_stride())),
       frames_(agent.uses_frames()),
@@ -23,7 +26,12 @@ ObservationFeed::ObservationFeed(const World& world, const Agent& agent)
 
 void ObservationFeed::push() {
   if (!frames_) return;
-  world_.render(ring_.data() + (rendered_ % span_) * frame_bytes_);
+  uint8_t* frame = ring_.data() + (rendered_ % span_) * frame_bytes_;
+  if (shift_)
+    render_sensor(world_.renderer(), world_.scene(), shift_,
+                  sensor_frame_key(shift_->seed, episode_key_, rendered_), frame);
+  else
+    world_.render(frame);
   ++rendered_;
 }
 

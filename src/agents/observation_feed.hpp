@@ -2,11 +2,14 @@
 // How an agent is fed from a World, step by step: a ring of the frames it needs (history()
 // frames, history_stride() steps apart, newest last; nothing is rendered for an agent that
 // uses no frames) and the Observation of the current state. The benchmark runner and dagger's
-// closed-loop rollouts drive agents through it.
+// closed-loop rollouts drive agents through it. With a sensor shift (eval.sensor = "shifted"),
+// frame n of the episode is rendered through it with the key sensor_frame_key(shift seed,
+// episode_key, n), so reruns and workers see the same noise.
 #include <cstdint>
 
 #include "agents/agent.hpp"
 #include "core/frame_buffer.hpp"
+#include "sense/sensor_shift.hpp"
 
 namespace cd {
 
@@ -14,7 +17,8 @@ class World;
 
 class ObservationFeed {
  public:
-  ObservationFeed(const World& world, const Agent& agent);
+  ObservationFeed(const World& world, const Agent& agent, const SensorShift* shift = nullptr,
+                  uint64_t episode_key = 0);
 
   // Renders the current state's frame into the ring.
   void push();
@@ -29,6 +33,8 @@ class ObservationFeed {
 
  private:
   const World& world_;
+  const SensorShift* shift_;
+  uint64_t episode_key_;
   int k_, stride_;
   bool frames_;
   double goal_distance_;

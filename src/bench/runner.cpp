@@ -14,7 +14,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
-#include "core/frame_buffer.hpp"
+#include "agents/observation_feed.hpp"
 #include "core/progress.hpp"
 #include "core/worker_pool.hpp"
 #include "methods/method.hpp"
@@ -66,27 +66,10 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
   world.reset(task);
   agent.begin_episode();
 
-  // The history ring: the newest frame last; the agent gets `k` frames `stride` steps apart.
-  const int k = std::max(1, agent.history()), stride = std::max(1, agent.history_stride());
-  const bool frames = agent.uses_frames();
-  const size_t span = static_cast<size_t>((k - 1) * stride + 1);
-  const size_t fb = world.renderer().frame_bytes();
-  FrameBytes ring(frames ? span * fb : 0);
-  size_t rendered = 0;
-  // The agent's sensor (eval.sensor): frame n of the episode is keyed by (sensor seed, the
-  // trial's traffic seed, n), so reruns and workers see the same noise.
+  // The agent's sensor (eval.sensor): frames keyed by the trial's traffic seed.
   const SensorShift* shift =
       settings.eval.sensor == "shifted" ? &settings.eval.sensor_shift : nullptr;
-  auto push_frame = [&] {
-    if (!frames) return;
-    uint8_t* frame = ring.data() + (rendered % span) * fb;
-    if (shift)
-      render_sensor(world.renderer(), world.scene(), shift,
-                    sensor_frame_key(shift->seed, task.traffic_seed, rendered), frame);
-    else
-      world.render(frame);
-    ++rendered;
-  };
+  ObservationFeed feed(world, agent, shift, task.traffic_seed);
 
   EpisodeResult r;
   r.scenario = task.scenario;
@@ -95,40 +78,20 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
   StepResult sr;
   // The ego stands (brake held) while real frames fill the history: never one frame repeated.
   const long prefill = std::max<long>(std::lround(settings.eval.prefill_s / dt),
-                                      static_cast<long>(span) - 1);
+                                      static_cast<long>(feed.span()) - 1);
   for (long i = 0; i < prefill && sr.outcome == Outcome::Running; ++i) {
-    push_frame();
+    feed.push();
     sr = world.step(Control{0.0, 1.0});
   }
 
-  Observation obs;
-  obs.channels = kBevChannelCount;
-  obs.height = world.renderer().config().height;
-  obs.width = world.renderer().config().width;
-  obs.frames.resize(frames ? k : 0);
-  const double goal_distance = agent.goal_distance();
   StopGoTracker tracker(dt);
   std::vector<char> stopped, free_path;
   long n = 0;
   const double t0 = world.time();
   const auto wall0 = std::chrono::steady_clock::now();
   while (sr.outcome == Outcome::Running) {
-    push_frame();
-    for (int j = 0; j < static_cast<int>(obs.frames.size()); ++j) {
-      size_t idx = rendered - 1 - static_cast<size_t>((k - 1 - j) * stride);
-      obs.frames[j] = ring.data() + (idx % span) * fb;
-    }
-    obs.speed = world.ego().speed;
-    obs.command = world.command();
-    const Pose2& pose = world.ego().pose;
-    obs.x = pose.pos.x;
-    obs.y = pose.pos.y;
-    obs.heading = pose.heading;
-    if (goal_distance > 0) {
-      const Vec2 g = to_ego_frame(pose, world.path_point(goal_distance));
-      obs.goal_x = g.x;
-      obs.goal_y = g.y;
-    }
+    feed.push();
+    const Observation& obs = feed.observe();
     Control c = agent.act(obs);
     if (trace_csv) {
       if (trace_csv->empty()) {
