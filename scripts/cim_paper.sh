@@ -30,28 +30,7 @@ DATA_A=$OUT/data/town-a
 DATA_C=$OUT/data/town-c
 TEST_SUITES="town-a-regular town-a-dense town-a-stopgo town-b-regular town-b-dense town-b-stopgo"
 
-[[ -x $CD ]] || { echo "error: $CD not found; run 'make build' first (or set CD)" >&2; exit 1; }
-
-# The suite file (or built-in name) of a test suite at $TASKS tasks.
-suite_of() {
-  local name=$1
-  if [[ $TASKS == 25 ]]; then echo "$name"; return; fi
-  local file=$OUT/suites/$name-$TASKS.json
-  if [[ ! -f $file ]]; then
-    mkdir -p "$OUT/suites"
-    local town=${name%-*} kind=${name##*-} seed
-    seed=$(( 5000 + $(cksum <<<"$name" | cut -d' ' -f1) % 1000 ))
-    if [[ $kind == stopgo ]]; then
-      "$CD" suite --name "$name-$TASKS" --town "$town" --traffic regular --tasks "$TASKS" \
-        --trials "$TRIALS" --seed "$seed" --scenarios red_light,leader --min-route 120 \
-        --max-route 300 --out "$file" >&2
-    else
-      "$CD" suite --name "$name-$TASKS" --town "$town" --traffic "$kind" --tasks "$TASKS" \
-        --trials "$TRIALS" --seed "$seed" --out "$file" >&2
-    fi
-  fi
-  echo "$file"
-}
+source scripts/paper_lib.sh
 
 train_all() {
   "$CD" collect --config "$CONFIG" --out "$DATA_A"
@@ -73,44 +52,16 @@ train_all() {
   done
 }
 
-# eval_agents TABLE SUITES AGENTS...: every agent x seed x suite, then the tables.
-eval_agents() {
-  local table=$1 suites=$2; shift 2
-  local dirs=()
-  for agent in "$@"; do
-    for name in $suites; do
-      local suite; suite=$(suite_of "$name")
-      if [[ $agent == cs ]]; then  # nothing trained: one run
-        local dir=$OUT/eval/cs/$name
-        "$CD" eval --config "$CONFIG" --agent cs --suite "$suite" --trials "$TRIALS" \
-          --workers "$WORKERS" --quiet --out "$dir"
-        dirs+=("$dir")
-        continue
-      fi
-      for s in $SEEDS; do
-        local run=$agent kind=$agent
-        if [[ $agent == *-fewshot ]]; then kind=${agent%-fewshot}; fi
-        local dir=$OUT/eval/$agent/seed$s/$name
-        "$CD" eval --config "$CONFIG" --agent "$kind" --checkpoint "$OUT/train/seed$s/$run" \
-          --label "$agent" --suite "$suite" --trials "$TRIALS" --workers "$WORKERS" --quiet \
-          --out "$dir"
-        dirs+=("$dir")
-      done
-    done
-  done
-  "$CD" report "${dirs[@]}" --metrics all --markdown "$OUT/$table.md" --csv "$OUT/$table.csv"
-}
-
 case ${1:-} in
   train) train_all ;;
-  table1) eval_agents table1 "$TEST_SUITES" cs dim rip cim ;;
-  table2) eval_agents table2 "$TEST_SUITES" cim cim-mlp cim-entangled ;;
-  table3) eval_agents table3 town-c-regular cim cim-mlp cim-fewshot cim-mlp-fewshot ;;
+  table1) eval_agents table1 all clean "$TEST_SUITES" cs dim rip cim ;;
+  table2) eval_agents table2 all clean "$TEST_SUITES" cim cim-mlp cim-entangled ;;
+  table3) eval_agents table3 all clean town-c-regular cim cim-mlp cim-fewshot cim-mlp-fewshot ;;
   all)
     train_all
-    eval_agents table1 "$TEST_SUITES" cs dim rip cim
-    eval_agents table2 "$TEST_SUITES" cim cim-mlp cim-entangled
-    eval_agents table3 town-c-regular cim cim-mlp cim-fewshot cim-mlp-fewshot
+    eval_agents table1 all clean "$TEST_SUITES" cs dim rip cim
+    eval_agents table2 all clean "$TEST_SUITES" cim cim-mlp cim-entangled
+    eval_agents table3 all clean town-c-regular cim cim-mlp cim-fewshot cim-mlp-fewshot
     ;;
   *)
     sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'

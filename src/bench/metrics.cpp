@@ -173,6 +173,8 @@ nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
           {"collision_rate", rate(collision)},
           {"inertia_rate", rate(inertia)},
           {"timeout_rate", rate(timeout)},
+          // Every episode that ran out of time, inertia included: seed 001's #TIMEOUT.
+          {"time_limit_rate", rate(timeout + inertia)},
           {"error_rate", rate(collision + inertia)},
           {"stop_go_events", events},
           {"stalls", stalls},

@@ -209,7 +209,8 @@ const std::vector<MetricSet>& metric_sets() {
        "Failure modes",
        {{"success_rate", "success %", 100.0},
         {"collision_rate", "collision %", 100.0},
-        {"timeout_rate", "timeout %", 100.0}},
+        {"time_limit_rate", "timeout %", 100.0},
+        {"inertia_rate", "inertia %", 100.0}},
        true},
   };
   return sets;

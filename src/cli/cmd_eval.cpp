@@ -13,7 +13,7 @@ namespace cd::cli {
 namespace {
 
 struct EvalArgs {
-  std::string config, agent, checkpoint, suite, out, label;
+  std::string config, agent, checkpoint, suite, out, label, sensor;
   int workers = 0, trials = 0;
   bool list = false, quiet = false, trace = false;
 };
@@ -47,6 +47,10 @@ void add_eval(CLI::App& app) {
   sub->add_option("--trials", a->trials, "trials per task (default: the suite's)")
       ->check(CLI::PositiveNumber);
   sub->add_option("--out,-o", a->out, "output folder (eval.out); a rerun resumes");
+  sub->add_option("--sensor", a->sensor,
+                  "clean | shifted: the agent's BEV, shifted = seed 001's new-weather stand-in "
+                  "(eval.sensor)")
+      ->check(CLI::IsMember({"clean", "shifted"}));
   sub->add_option("--label", a->label, "row name in tables (default: the agent name)");
   sub->add_flag("--list-suites", a->list, "list the built-in suites and agents");
   sub->add_flag("--quiet,-q", a->quiet, "no progress output");
@@ -61,6 +65,7 @@ void add_eval(CLI::App& app) {
     if (a->workers > 0) s.eval.workers = a->workers;
     if (a->trials > 0) s.eval.trials = a->trials;
     if (!a->out.empty()) s.eval.out = a->out;
+    if (!a->sensor.empty()) s.eval.sensor = a->sensor;
     EvalRequest req{a->agent, a->checkpoint, a->label, a->quiet, a->trace};
     EvalReport r = run_eval(s, req);
     std::printf("%s", results_table(r.results).c_str());

@@ -128,6 +128,8 @@ TEST(BenchMetrics, SummaryRatesExcludeInfrastructureFailures) {
   EXPECT_DOUBLE_EQ(s["collision_rate"].get<double>(), 0.25);
   EXPECT_DOUBLE_EQ(s["inertia_rate"].get<double>(), 0.25);
   EXPECT_DOUBLE_EQ(s["timeout_rate"].get<double>(), 0.25);
+  EXPECT_DOUBLE_EQ(s["time_limit_rate"].get<double>(),
+                   s["timeout_rate"].get<double>() + s["inertia_rate"].get<double>());
   EXPECT_DOUBLE_EQ(s["error_rate"].get<double>(), 0.5);
   EXPECT_EQ(s["stop_go_events"], 3);
   EXPECT_EQ(s["stalls"], 1);

@@ -35,7 +35,7 @@ nlohmann::json results(const std::string& agent, const std::string& suite,
   nlohmann::json s = {{"episodes", 75},          {"infrastructure_failures", 0},
                       {"success_rate", 0.9},     {"collision_rate", 0.04},
                       {"inertia_rate", 0.02},    {"timeout_rate", 0.04},
-                      {"error_rate", 0.06},      {"stop_go_events", 31},
+                      {"time_limit_rate", 0.06}, {"error_rate", 0.06},      {"stop_go_events", 31},
                       {"stalls", 2},             {"stall_rate", 0.0645},
                       {"start_delay_median_s", 1.3}, {"start_delay_p90_s", 2.9},
                       {"red_light_violations_per_km", 0.1}, {"route_completion", 0.93},
@@ -144,9 +144,9 @@ TEST(ReportCli, SeedsGiveMeanAndSampleStdInCsvAndTable) {
   // Equal values: std 0.
   EXPECT_TRUE(has_line("BC,town-a-dense,collision_rate,0.04,0,3")) << test::read_text(csv);
   // Each metric once though collision_rate is in three sets (error, outcomes, failure) and
-  // success and timeout in two: 10 metrics x 2 suites + header (green_light_rate without a
+  // success and inertia in two: 11 metrics x 2 suites + header (green_light_rate without a
   // value in these files: rows with n = 0).
-  EXPECT_EQ(lines.size(), 1u + 2 * 10) << test::read_text(csv);
+  EXPECT_EQ(lines.size(), 1u + 2 * 11) << test::read_text(csv);
   EXPECT_TRUE(has_line("BC,town-a-dense,green_light_rate,,,0")) << test::read_text(csv);
   EXPECT_EQ(test::list_dir(dir / "out"), std::vector<std::string>{"report.csv"})
       << "no temporary file left beside the CSV";
@@ -342,7 +342,8 @@ nlohmann::json run(const std::string& label, const std::string& suite, const std
                    const std::string& sensor, double success, double collision, double timeout) {
   nlohmann::json j = results("agent-" + label, suite,
                              {{"success_rate", success}, {"collision_rate", collision},
-                              {"timeout_rate", timeout}, {"inertia_rate", 0.0}},
+                              {"timeout_rate", timeout / 2}, {"inertia_rate", timeout / 2},
+                              {"time_limit_rate", timeout}},
                              label);
   j["town"] = town;
   j["sensor"] = sensor;
@@ -380,29 +381,32 @@ TEST(ReportFailureModes, OneTablePerConditionWithTrafficColumns) {
   std::vector<std::string> lines = test::split_lines(r.out.substr(t));
   ASSERT_GE(lines.size(), 6u) << r.out;
   std::vector<std::string> header = cells(lines[2]);
-  ASSERT_EQ(header.size(), 1u + 3 * 3) << r.out;
+  // Seed 001's #TIMEOUT is every episode out of time (time_limit_rate); inertia beside it.
+  ASSERT_EQ(header.size(), 1u + 3 * 4) << r.out;
   EXPECT_EQ(header[1], "regular success %");
   EXPECT_EQ(header[2], "regular collision %");
   EXPECT_EQ(header[3], "regular timeout %");
-  EXPECT_EQ(header[4], "dense success %");
-  EXPECT_EQ(header[7], "stopgo success %");
+  EXPECT_EQ(header[4], "regular inertia %");
+  EXPECT_EQ(header[5], "dense success %");
+  EXPECT_EQ(header[9], "stopgo success %");
   std::vector<std::string> bc = cells(table_row(r.out, "Failure modes, training town", "bc"));
-  ASSERT_EQ(bc.size(), 10u) << r.out;
+  ASSERT_EQ(bc.size(), 13u) << r.out;
   // Two seeds on regular: 70 +- 14.1 (sqrt(2) * 10), 20 +- 14.1, 10 +- 0; the shifted runs
   // are not seeds of it.
   EXPECT_EQ(bc[1], "70.0 \u00b1 14.1") << r.out;
   EXPECT_EQ(bc[2], "20.0 \u00b1 14.1") << r.out;
   EXPECT_EQ(bc[3], "10.0 \u00b1 0.0") << r.out;
-  EXPECT_EQ(bc[4], "40.0") << r.out;
-  EXPECT_EQ(bc[7], "90.0") << r.out;
+  EXPECT_EQ(bc[4], "5.0 \u00b1 0.0") << r.out;
+  EXPECT_EQ(bc[5], "40.0") << r.out;
+  EXPECT_EQ(bc[9], "90.0") << r.out;
   std::vector<std::string> res = cells(table_row(r.out, "Failure modes, training town", "res"));
-  ASSERT_EQ(res.size(), 10u) << r.out;
+  ASSERT_EQ(res.size(), 13u) << r.out;
   EXPECT_EQ(res[1], "90.0");
-  EXPECT_EQ(res[4], kDash) << "res has no dense run";
+  EXPECT_EQ(res[5], kDash) << "res has no dense run";
 
   // New sensor: the shifted runs only, bc alone.
   std::vector<std::string> sbc = cells(table_row(r.out, "Failure modes, new sensor", "bc"));
-  ASSERT_EQ(sbc.size(), 4u) << r.out;
+  ASSERT_EQ(sbc.size(), 5u) << r.out;
   EXPECT_EQ(sbc[1], "30.0 \u00b1 14.1");
   EXPECT_EQ(sbc[2], "50.0 \u00b1 0.0");
   EXPECT_EQ(sbc[3], "20.0 \u00b1 14.1");
@@ -410,13 +414,13 @@ TEST(ReportFailureModes, OneTablePerConditionWithTrafficColumns) {
 
   // New town: town-b, regular before dense.
   std::vector<std::string> header_b = cells(test::split_lines(r.out.substr(n))[2]);
-  ASSERT_EQ(header_b.size(), 7u) << r.out;
+  ASSERT_EQ(header_b.size(), 9u) << r.out;
   EXPECT_EQ(header_b[1], "regular success %");
-  EXPECT_EQ(header_b[4], "dense success %");
+  EXPECT_EQ(header_b[5], "dense success %");
   std::vector<std::string> tbc = cells(table_row(r.out, "Failure modes, new town", "bc"));
-  ASSERT_EQ(tbc.size(), 7u) << r.out;
+  ASSERT_EQ(tbc.size(), 9u) << r.out;
   EXPECT_EQ(tbc[1], kDash);
-  EXPECT_EQ(tbc[5], "70.0");
+  EXPECT_EQ(tbc[6], "70.0");
   std::vector<std::string> tres = cells(table_row(r.out, "Failure modes, new town", "res"));
   EXPECT_EQ(tres[3], "25.0");
 }

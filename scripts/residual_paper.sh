@@ -1,0 +1,126 @@
+#!/usr/bin/env bash
+# Reproduces seed 001's driving tables (appendix B: tables 7-11 and the branches ablation) on
+# causaldrive's towns with configs/residual_paper.toml.
+#
+#   scripts/residual_paper.sh train     # town-a expert data + every method and ablation, all seeds
+#   scripts/residual_paper.sh table7    # failure modes, training town (town-a regular, dense)
+#   scripts/residual_paper.sh table8    # failure modes, new sensor (town-a, eval.sensor shifted)
+#   scripts/residual_paper.sh table9    # failure modes, new town (town-b regular, dense)
+#   scripts/residual_paper.sh stopgo    # stall rate, start delay: town-a-stopgo, town-b-stopgo
+#   scripts/residual_paper.sh table10   # green-light rate, town-a dense (bc-oh, keyframe, residual)
+#   scripts/residual_paper.sh table11   # two-stream bc-oh / keyframe vs one-stream, town-a dense
+#   scripts/residual_paper.sh branches  # residual with 1, 2 and 4 memory branches, town-a dense
+#   scripts/residual_paper.sh probe     # copycat probe of every history method (JSON per run)
+#   scripts/residual_paper.sh all       # everything above in order
+#
+# Every step resumes: collect, train and eval skip what their output folders already hold, so
+# an interrupted run is continued by running the same command again. Environment knobs:
+#   CD      the causaldrive binary        (default: build/causaldrive)
+#   OUT     the experiment folder          (default: runs/residual_paper)
+#   SEEDS   training seeds                 (default: "0 1 2")
+#   TASKS   tasks per suite; 25 uses the built-in suites (default: 25, as the seed's NoCrash)
+#   TRIALS  trials per task                (default: 1)
+#   WORKERS evaluation workers             (default: 2)
+#   CONFIG  the experiment config          (default: configs/residual_paper.toml)
+set -euo pipefail
+
+cd "$(dirname "$0")/.."
+CD=${CD:-build/causaldrive}
+CONFIG=${CONFIG:-configs/residual_paper.toml}
+OUT=${OUT:-runs/residual_paper}
+SEEDS=${SEEDS:-"0 1 2"}
+TASKS=${TASKS:-25}
+TRIALS=${TRIALS:-1}
+WORKERS=${WORKERS:-2}
+DATA=$OUT/data/town-a
+METHODS="bc-so bc-oh residual dagger hd fca keyframe"
+source scripts/paper_lib.sh
+
+# Ablations: label, method and the [residual] table appended to the paper config.
+ABLATIONS=(
+  "two-stream-bc-oh|residual|policy_input = \"history\"\nmemory_target = \"action\""
+  "two-stream-keyframe|residual|policy_input = \"history\"\nmemory_target = \"action\"\nweights = \"keyframe\""
+  "residual-b2|residual|branches = 2"
+  "residual-b4|residual|branches = 4"
+)
+
+ablation_config() {  # LABEL -> a config file: the paper config plus the ablation's table
+  local label=$1 entry
+  for entry in "${ABLATIONS[@]}"; do
+    IFS='|' read -r name method table <<<"$entry"
+    if [[ $name == "$label" ]]; then
+      mkdir -p "$OUT/configs"
+      local file=$OUT/configs/$label.toml
+      { cat "$CONFIG"; printf '\n[residual]\n%b\n' "$table"; } > "$file.tmp" && mv "$file.tmp" "$file"
+      echo "$file"
+      return
+    fi
+  done
+  echo "unknown ablation $label" >&2
+  exit 1
+}
+
+train_all() {
+  "$CD" collect --config "$CONFIG" --out "$DATA"
+  for s in $SEEDS; do
+    local T=$OUT/train/seed$s
+    for m in $METHODS; do
+      "$CD" train --config "$CONFIG" --method "$m" --data "$DATA" --seed "$s" --out "$T/$m"
+    done
+    for entry in "${ABLATIONS[@]}"; do
+      IFS='|' read -r label method _ <<<"$entry"
+      "$CD" train --config "$(ablation_config "$label")" --method "$method" --data "$DATA" \
+        --seed "$s" --out "$T/$label"
+    done
+  done
+}
+
+probe_all() {
+  for s in $SEEDS; do
+    for m in bc-oh residual dagger hd fca keyframe; do
+      local f=$OUT/probe/seed$s/$m.json
+      [[ -f $f ]] && continue
+      mkdir -p "$(dirname "$f")"
+      "$CD" probe --checkpoint "$OUT/train/seed$s/$m" --data "$DATA" --max-frames 2000 --json \
+        > "$f.tmp" && mv "$f.tmp" "$f"
+    done
+  done
+  python3 - "$OUT/probe" "$SEEDS" <<'PY'
+import json, sys, statistics as st
+root, seeds = sys.argv[1], sys.argv[2].split()
+print("| method | history effect, path free | history effect, blocked |")
+print("|---|---|---|")
+for m in ["bc-oh", "residual", "dagger", "hd", "fca", "keyframe"]:
+    row = []
+    for group in ["path_free", "blocked"]:
+        v = [json.load(open(f"{root}/seed{s}/{m}.json"))[group]["history_effect"] for s in seeds]
+        v = [x for x in v if x is not None]
+        sd = st.stdev(v) if len(v) > 1 else 0.0
+        row.append(f"{st.mean(v):.3f} ± {sd:.3f}" if v else "-")
+    print(f"| {m} | {row[0]} | {row[1]} |")
+PY
+}
+
+A="town-a-regular town-a-dense"
+B="town-b-regular town-b-dense"
+case ${1:-} in
+  train) train_all ;;
+  table7) eval_agents table7 failure,lights clean "$A" $METHODS ;;
+  table8) eval_agents table8 failure shifted "$A" $METHODS ;;
+  table9) eval_agents table9 failure clean "$B" $METHODS ;;
+  stopgo) eval_agents stopgo stopgo,outcomes clean "town-a-stopgo town-b-stopgo" $METHODS ;;
+  table10) eval_agents table10 lights clean town-a-dense bc-oh keyframe residual ;;
+  table11) eval_agents table11 outcomes clean town-a-dense two-stream-bc-oh=residual \
+             two-stream-keyframe=residual bc-oh keyframe residual ;;
+  branches) eval_agents branches outcomes clean town-a-dense residual residual-b2=residual \
+              residual-b4=residual ;;
+  probe) probe_all ;;
+  all)
+    "$0" train
+    for step in table7 table8 table9 stopgo table10 table11 branches probe; do "$0" "$step"; done
+    ;;
+  *)
+    sed -n '2,22p' "$0" | sed 's/^# \{0,1\}//'
+    exit 2
+    ;;
+esac
