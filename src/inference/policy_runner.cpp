@@ -17,6 +17,14 @@ struct PolicyRunner::Impl {
   // Preallocated inputs: one observation, filled in place every step.
   torch::Tensor image, speed, command;
   size_t frame_values = 0;
+
+  // Writes one observation into the preallocated inputs.
+  void fill(const uint8_t* const* frames, double speed_value, int command_value);
+  // The action of the network that acts (B = 1); with `feature_map`, also its backbone's last
+  // convolutional map and which module that is.
+  torch::Tensor act(const float* previous, torch::Tensor* feature_map, std::string* module);
+  // Keeps the action components and turns them into controls.
+  PolicyStep step(torch::Tensor a, bool target_speed_head);
 };
 
 PolicyRunner::PolicyRunner(const std::string& dir, const std::string& expected_method,
@@ -57,50 +65,104 @@ bool PolicyRunner::target_speed_head() const {
 
 const std::vector<float>& PolicyRunner::last_action() const { return impl_->action; }
 
-PolicyStep PolicyRunner::run(const uint8_t* const* frames, double speed, int command,
-                             const float* previous) {
-  Impl& m = *impl_;
-  float* img = m.image.data_ptr<float>();
-  for (int k = 0; k < m.ck.input.history; ++k) {
+const std::vector<std::string>& policy_runner_methods() {
+  static const std::vector<std::string> names = {"bc-so", "bc-oh", "residual", "fca",
+                                                 "keyframe", "hd", "dagger"};
+  return names;
+}
+
+void PolicyRunner::Impl::fill(const uint8_t* const* frames, double speed_value, int command_value) {
+  float* img = image.data_ptr<float>();
+  for (int k = 0; k < ck.input.history; ++k) {
     const uint8_t* f = frames[k];
-    float* dst = img + static_cast<size_t>(k) * m.frame_values;
-    for (size_t i = 0; i < m.frame_values; ++i) dst[i] = f[i] ? 1.0f : 0.0f;
+    float* dst = img + static_cast<size_t>(k) * frame_values;
+    for (size_t i = 0; i < frame_values; ++i) dst[i] = f[i] ? 1.0f : 0.0f;
   }
-  m.speed.data_ptr<float>()[0] = m.ck.model.speed_input ? static_cast<float>(speed) : 0.0f;
-  m.command.data_ptr<int64_t>()[0] = std::clamp(command, 0, 3);
-  torch::InferenceMode inference;
-  PolicyNets& nets = *m.nets;
-  const PolicyNetsLayout& l = nets.layout;
+  speed.data_ptr<float>()[0] = ck.model.speed_input ? static_cast<float>(speed_value) : 0.0f;
+  command.data_ptr<int64_t>()[0] = std::clamp(command_value, 0, 3);
+}
+
+torch::Tensor PolicyRunner::Impl::act(const float* previous, torch::Tensor* feature_map,
+                                      std::string* module) {
+  const PolicyNetsLayout& l = nets->layout;
   torch::Tensor a;
   torch::Tensor memory_feature;
   PolicyOutput mem;
-  if (nets.memory) {
-    mem = nets.memory->forward(m.image, m.speed, m.command, false);
+  if (nets->memory) {
+    mem = nets->memory->forward(image, speed, command, false);
     memory_feature = mem.feature;
   }
-  if (nets.policy) {
-    const int C = m.ck.input.channels;
-    torch::Tensor in = l.policy_sees_history ? m.image : m.image.narrow(1, m.image.size(1) - C, C);
-    a = nets.policy->forward(in, m.speed, m.command, false, memory_feature).action;
-  } else if (nets.controller) {
-    a = nets.control(memory_feature);
+  if (nets->policy) {
+    // The memory feature is an input of the policy module (detached, as in training).
+    if (memory_feature.defined()) memory_feature = memory_feature.detach();
+    const int C = ck.input.channels;
+    torch::Tensor in = l.policy_sees_history ? image : image.narrow(1, image.size(1) - C, C);
+    PolicyOutput out = nets->policy->forward(in, speed, command, false, memory_feature);
+    a = out.action;
+    if (feature_map) {
+      *feature_map = out.feature_map;
+      *module = "policy";
+    }
   } else {
-    // Memory only, residual controller: a_t = a_{t-1} + the predicted a_t - a_{t-1} (head 1).
-    torch::Tensor prev = torch::zeros({1, l.action_dim});
-    if (previous) std::copy_n(previous, l.action_dim, prev.data_ptr<float>());
-    a = prev + mem.action.narrow(1, 0, l.action_dim);
+    if (feature_map) {
+      *feature_map = mem.feature_map;
+      *module = "memory";
+    }
+    if (nets->controller) {
+      a = nets->control(memory_feature);
+    } else {
+      // Memory only, residual controller: a_t = a_{t-1} + the predicted a_t - a_{t-1} (head 1).
+      torch::Tensor prev = torch::zeros({1, l.action_dim});
+      if (previous) std::copy_n(previous, l.action_dim, prev.data_ptr<float>());
+      a = prev + mem.action.narrow(1, 0, l.action_dim);
+    }
   }
-  a = a.contiguous();
+  return a;
+}
+
+PolicyStep PolicyRunner::Impl::step(torch::Tensor a, bool target_speed_head) {
+  a = a.detach().contiguous();
   const float* v = a.data_ptr<float>();
-  m.action.assign(v, v + a.size(1));
-  PolicyStep step;
-  if (target_speed_head()) {
-    step.target_speed = std::max(0.0f, v[0]);
+  action.assign(v, v + a.size(1));
+  PolicyStep s;
+  if (target_speed_head) {
+    s.target_speed = std::max(0.0f, v[0]);
   } else {
-    step.throttle = std::clamp(v[0], 0.0f, 1.0f);
-    step.brake = std::clamp(v[1], 0.0f, 1.0f);
+    s.throttle = std::clamp(v[0], 0.0f, 1.0f);
+    s.brake = std::clamp(v[1], 0.0f, 1.0f);
   }
-  return step;
+  return s;
+}
+
+PolicyStep PolicyRunner::run(const uint8_t* const* frames, double speed, int command,
+                             const float* previous) {
+  Impl& m = *impl_;
+  m.fill(frames, speed, command);
+  torch::InferenceMode inference;
+  return m.step(m.act(previous, nullptr, nullptr), target_speed_head());
+}
+
+PolicyStep PolicyRunner::run_with_gradient(const uint8_t* const* frames, double speed,
+                                           int command, const float* previous,
+                                           FeatureMapGradient& out) {
+  Impl& m = *impl_;
+  m.fill(frames, speed, command);
+  torch::AutoGradMode grad_on(true);
+  torch::Tensor map;
+  torch::Tensor a = m.act(previous, &map, &out.module);
+  // The head's output as one number, unclamped: the target speed, or throttle - brake.
+  torch::Tensor scalar = target_speed_head() ? a.select(1, 0) : a.select(1, 0) - a.select(1, 1);
+  torch::Tensor g = torch::autograd::grad({scalar.sum()}, {map}, {}, /*retain_graph=*/false,
+                                          /*create_graph=*/false, /*allow_unused=*/true)[0];
+  if (!g.defined()) g = torch::zeros_like(map);
+  map = map.detach().contiguous();
+  g = g.contiguous();
+  out.channels = static_cast<int>(map.size(1));
+  out.height = static_cast<int>(map.size(2));
+  out.width = static_cast<int>(map.size(3));
+  out.activation.assign(map.data_ptr<float>(), map.data_ptr<float>() + map.numel());
+  out.gradient.assign(g.data_ptr<float>(), g.data_ptr<float>() + g.numel());
+  return m.step(a, target_speed_head());
 }
 
 }  // namespace cd

@@ -19,6 +19,19 @@ struct PolicyStep {
   double scalar() const { return target_speed == target_speed ? target_speed : throttle - brake; }
 };
 
+// The methods whose run folders PolicyRunner loads (their checkpoint.json names one of them).
+const std::vector<std::string>& policy_runner_methods();
+
+// Grad-CAM's inputs for one observation: the last convolutional feature map A of the backbone
+// of the network that acts, and the gradient of the head's output as one number (throttle -
+// brake, or the target speed, before any clamping) with respect to A.
+struct FeatureMapGradient {
+  std::string module;  // "policy", or "memory" for residual's memory-only layouts
+  int channels = 0, height = 0, width = 0;  // of A (batch 1)
+  std::vector<float> activation;  // A: channels x height x width, row major
+  std::vector<float> gradient;    // dOutput/dA, same layout
+};
+
 // torch's intra-op threads for this process (closed loop: 1, one worker process per core).
 void set_torch_threads(int threads);
 
@@ -44,6 +57,9 @@ class PolicyRunner {
   // residual controller reads it (a_{t-1} + the predicted residual); null means zeros.
   PolicyStep run(const uint8_t* const* frames, double speed, int command,
                  const float* previous = nullptr);
+  // run() that also fills `out` (autograd on, so slower than run(); the same action).
+  PolicyStep run_with_gradient(const uint8_t* const* frames, double speed, int command,
+                               const float* previous, FeatureMapGradient& out);
   // The action components of the last run() (A values; the target speed for that head).
   const std::vector<float>& last_action() const;
 

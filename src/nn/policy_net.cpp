@@ -75,8 +75,12 @@ SmallBackboneImpl::SmallBackboneImpl(int in_channels, int height, int width, int
   register_module("fc", fc);
 }
 
-torch::Tensor SmallBackboneImpl::forward(torch::Tensor x) {
-  return torch::relu(fc->forward(convs->forward(x).flatten(1)));
+torch::Tensor SmallBackboneImpl::forward(torch::Tensor x) { return features_of(feature_map(x)); }
+
+torch::Tensor SmallBackboneImpl::feature_map(torch::Tensor x) { return convs->forward(x); }
+
+torch::Tensor SmallBackboneImpl::features_of(torch::Tensor map) {
+  return torch::relu(fc->forward(map.flatten(1)));
 }
 
 BasicBlockImpl::BasicBlockImpl(int in, int out, int stride)
@@ -120,8 +124,14 @@ ResNet34BackboneImpl::ResNet34BackboneImpl(int in_channels, int features) {
   }
 }
 
-torch::Tensor ResNet34BackboneImpl::forward(torch::Tensor x) {
-  torch::Tensor f = layers->forward(stem->forward(x)).mean({2, 3});
+torch::Tensor ResNet34BackboneImpl::forward(torch::Tensor x) { return features_of(feature_map(x)); }
+
+torch::Tensor ResNet34BackboneImpl::feature_map(torch::Tensor x) {
+  return layers->forward(stem->forward(x));
+}
+
+torch::Tensor ResNet34BackboneImpl::features_of(torch::Tensor map) {
+  torch::Tensor f = map.mean({2, 3});
   return proj ? torch::relu(proj->forward(f)) : f;
 }
 
@@ -169,8 +179,10 @@ torch::Tensor PolicyNetImpl::squash(const torch::Tensor& raw) const {
 PolicyOutput PolicyNetImpl::forward(const torch::Tensor& image, const torch::Tensor& speed,
                                     const torch::Tensor& command, bool with_speed,
                                     const torch::Tensor& extra) {
-  torch::Tensor f = small ? small->forward(image) : resnet->forward(image);
+  torch::Tensor map = small ? small->feature_map(image) : resnet->feature_map(image);
+  torch::Tensor f = small ? small->features_of(map) : resnet->features_of(map);
   PolicyOutput out;
+  out.feature_map = map;
   out.feature = f;
   if (with_speed) out.speed = speed_head->forward(f);
   std::vector<torch::Tensor> joined = {f, measurement->forward(speed)};

@@ -50,6 +50,9 @@ struct PolicyOutput {
   torch::Tensor speed;      // B x 1, predicted ego speed (m/s); undefined when not asked for
   torch::Tensor feature;    // B x features: the backbone's output f
   torch::Tensor embedding;  // B x features: the fusion output j the branches read
+  // B x C x h x w: the backbone's last convolutional feature map, the one `feature` is
+  // computed from (what Grad-CAM weighs; diagnostics/attention).
+  torch::Tensor feature_map;
 };
 
 // Five stages, sized for 64x64 inputs on a CPU: a 4x4/stride-4 patch convolution (the input
@@ -59,7 +62,12 @@ struct PolicyOutput {
 // 1 M multiply-adds per stacked 8-plane frame plus 1.2 M for the rest of the backbone.
 struct SmallBackboneImpl : torch::nn::Module {
   SmallBackboneImpl(int in_channels, int height, int width, int features);
+  // forward(x) = features_of(feature_map(x)), the same operations in the same order.
   torch::Tensor forward(torch::Tensor x);
+  // The output of the last conv block (after its ReLU), before the flatten: B x 32 x h x w.
+  torch::Tensor feature_map(torch::Tensor x);
+  // The rest of the backbone: flatten, dense layer, ReLU.
+  torch::Tensor features_of(torch::Tensor map);
 
   torch::nn::Sequential convs{nullptr};
   torch::nn::Linear fc{nullptr};
@@ -80,7 +88,12 @@ TORCH_MODULE(BasicBlock);
 // when that is not 512.
 struct ResNet34BackboneImpl : torch::nn::Module {
   ResNet34BackboneImpl(int in_channels, int features);
+  // forward(x) = features_of(feature_map(x)), the same operations in the same order.
   torch::Tensor forward(torch::Tensor x);
+  // The last stage's output (after its last block): B x 512 x h x w.
+  torch::Tensor feature_map(torch::Tensor x);
+  // The rest: global average pool (and the projection to `features` when there is one).
+  torch::Tensor features_of(torch::Tensor map);
 
   torch::nn::Sequential stem{nullptr}, layers{nullptr};
   torch::nn::Linear proj{nullptr};

@@ -1,4 +1,5 @@
 #include "sense/bev.hpp"
+#include "sense/bev_colour.hpp"
 
 #include <algorithm>
 #include <cerrno>
@@ -296,13 +297,10 @@ void BevRenderer::render_packed(const BevScene& scene, uint8_t* out) const {
   }
 }
 
-void write_bev_png(const std::string& path, const uint8_t* frame, int channels, int height,
-                   int width, int scale) {
-  if (channels < 1 || channels > kBevChannelCount || height < 1 || width < 1 || scale < 1 ||
-      int64_t(width) * scale * 3 > INT32_MAX || int64_t(height) * scale > INT32_MAX)
-    throw Error("bev: cannot draw a " + std::to_string(channels) + " x " +
-                std::to_string(height) + " x " + std::to_string(width) + " frame at scale " +
-                std::to_string(scale));
+std::vector<uint8_t> bev_colour(const uint8_t* frame, int channels, int height, int width) {
+  if (channels < 1 || channels > kBevChannelCount || height < 1 || width < 1)
+    throw Error("bev: cannot colour a " + std::to_string(channels) + " x " +
+                std::to_string(height) + " x " + std::to_string(width) + " frame");
   struct Rgb {
     uint8_t r, g, b;
   };
@@ -332,16 +330,32 @@ void write_bev_png(const std::string& path, const uint8_t* frame, int channels, 
         px = col;
     }
   }
+  std::vector<uint8_t> rgb(plane * 3);
+  for (size_t i = 0; i < plane; ++i) {
+    rgb[i * 3] = small[i].r;
+    rgb[i * 3 + 1] = small[i].g;
+    rgb[i * 3 + 2] = small[i].b;
+  }
+  return rgb;
+}
 
+void write_bev_png(const std::string& path, const uint8_t* frame, int channels, int height,
+                   int width, int scale) {
+  if (channels < 1 || channels > kBevChannelCount || height < 1 || width < 1 || scale < 1 ||
+      int64_t(width) * scale * 3 > INT32_MAX || int64_t(height) * scale > INT32_MAX)
+    throw Error("bev: cannot draw a " + std::to_string(channels) + " x " +
+                std::to_string(height) + " x " + std::to_string(width) + " frame at scale " +
+                std::to_string(scale));
+  const std::vector<uint8_t> small = bev_colour(frame, channels, height, width);
   const int big_w = width * scale, big_h = height * scale;
   std::vector<uint8_t> big(size_t(big_w) * big_h * 3);
   for (int y = 0; y < big_h; ++y)
     for (int x = 0; x < big_w; ++x) {
-      const Rgb px = small[size_t(y / scale) * width + x / scale];
+      const uint8_t* px = &small[(size_t(y / scale) * width + x / scale) * 3];
       uint8_t* o = &big[(size_t(y) * big_w + x) * 3];
-      o[0] = px.r;
-      o[1] = px.g;
-      o[2] = px.b;
+      o[0] = px[0];
+      o[1] = px[1];
+      o[2] = px[2];
     }
 
   std::string png;
