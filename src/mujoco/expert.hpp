@@ -4,9 +4,11 @@
 // The expert here is a sampling-based planner (MPPI) on the true simulator: at each query it
 // rolls out `samples` perturbed action sequences of `horizon` steps from the given state in a
 // private copy of the env (set_state), and returns the first action of their reward-weighted
-// mean. No training, no torch; its cost is samples x horizon env steps per query. Its previous
-// plan, shifted by one step, seeds the next query (warm start), so a run of queries along an
-// episode is cheaper to make good than isolated ones; every draw comes from its seed.
+// mean. No training, no torch; its cost is samples x horizon x iterations env steps per query.
+// Its previous plan, shifted by one step, seeds the next query (warm start), so a run of queries
+// along an episode is cheaper to make good than isolated ones; every draw comes from its seed.
+// A rollout that ends healthy earns a terminal value (its last reward continued), one that
+// terminates (falls) a penalty larger than any return; the noise is time-correlated.
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -27,11 +29,16 @@ class Expert {
 };
 
 struct PlannerOptions {
-  int samples = 0;           // rollouts per query; 0: the env's default
+  int samples = 0;           // rollouts per iteration; 0: the env's default
   int horizon = 0;           // env steps per rollout; 0: the env's default
   int iterations = 0;        // refinements per query; 0: the env's default
   double sigma = 0;          // exploration noise, fraction of the half ctrlrange; 0: default
-  double temperature = 0.1;  // weights exp((R - max R) / (temperature (max R - min R)))
+  double temperature = 0;    // weights exp((R - max R) / (temperature (max R - min R))); 0: default
+  // Time correlation of the noise along a rollout (0: white; 0.9: smooth); < 0: the env's default.
+  double smoothing = -1;
+  // Terminal value: the rollout's last reward counted this many more times (what continuing at
+  // the final speed, upright, is worth beyond the horizon); < 0: the env's default.
+  double terminal_steps = -1;
   uint64_t seed = 0;
 };
 
@@ -50,6 +57,7 @@ class PlannerExpert : public Expert {
 
  private:
   double rollout(std::span<const double> state, const std::vector<double>& plan);
+  void sample_noise(std::vector<double>& plan, double sigma);
 
   Env sim_;
   PlannerOptions options_;

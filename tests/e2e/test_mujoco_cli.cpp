@@ -1,6 +1,9 @@
 // `causaldrive collect --env`: the MuJoCo-Image domain from the command line (one tiny run),
-// its one-line errors, and the driving options it refuses.
+// its one-line errors, and the driving options it refuses; `bench env` and `bench expert` (their
+// JSON: keys and sane values, never timings).
 #include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
 
 #include <string>
 #include <vector>
@@ -62,6 +65,53 @@ TEST(CliMujoco, CollectsATinyDatasetAndResumes) {
   r = test::run_cli(args);
   ASSERT_EQ(r.exit_code, 0) << r.describe();
   EXPECT_TRUE(has(r.out, "recorded now: 0")) << r.out;
+}
+
+TEST(CliMujoco, BenchEnvJsonHasPhysicsRenderAndEverySize) {
+  const CommandResult r =
+      test::run_cli({"bench", "env", "--env", "hopper", "--steps", "40", "--slices", "2",
+                     "--size", "16,24", "--expert-steps", "1", "--json"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  const std::vector<std::string> lines = test::split_lines(r.out);
+  ASSERT_EQ(lines.size(), 1u) << r.out;
+  const nlohmann::json j = nlohmann::json::parse(lines[0]);
+  EXPECT_EQ(j["env"], "hopper");
+  EXPECT_EQ(j["size"], 16) << "the top-level figures are the first size's";
+  EXPECT_EQ(j["steps"], 40);
+  EXPECT_EQ(j["slices"], 2);
+  for (const char* k : {"physics_steps_per_s", "full_steps_per_s", "expert_steps_per_s"}) {
+    ASSERT_TRUE(j[k].is_number()) << k;
+    EXPECT_GT(j[k].get<double>(), 0.0) << k;
+  }
+  // Rendering costs something, never more than the whole step.
+  EXPECT_LT(j["render_share"].get<double>(), 1.0);
+  EXPECT_EQ(j["expert_steps"], 2);  // one per slice
+  ASSERT_EQ(j["sizes"].size(), 2u);
+  EXPECT_EQ(j["sizes"][1]["size"], 24);
+  EXPECT_GT(j["sizes"][1]["full_steps_per_s"].get<double>(), 0.0);
+}
+
+TEST(CliMujoco, BenchEnvUnknownEnvIsOneLine) {
+  const std::string line =
+      one_line_error(test::run_cli({"bench", "env", "--env", "walker", "--json"}), "bench env");
+  EXPECT_TRUE(has(line, "unknown MuJoCo environment 'walker'")) << line;
+}
+
+TEST(CliMujoco, BenchExpertReportsReturnAndCostAndIsSeeded) {
+  const std::vector<std::string> args = {"bench", "expert", "--env", "reacher", "--steps", "3",
+                                         "--samples", "4", "--horizon", "2", "--seed", "7",
+                                         "--json"};
+  const CommandResult r = test::run_cli(args);
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  const nlohmann::json j = nlohmann::json::parse(test::split_lines(r.out).at(0));
+  EXPECT_EQ(j["env"], "reacher");
+  EXPECT_EQ(j["steps"], 3);
+  EXPECT_EQ(j["terminated"], false);
+  EXPECT_LT(j["return"].get<double>(), 0.0) << "reacher's reward is a negative distance";
+  EXPECT_EQ(j["simulated_steps"], 3 * 4 * 2 * 2) << "reacher's default: 2 iterations";
+  EXPECT_GT(j["s_per_step"].get<double>(), 0.0);
+  const CommandResult again = test::run_cli(args);
+  EXPECT_EQ(nlohmann::json::parse(test::split_lines(again.out).at(0))["return"], j["return"]);
 }
 
 }  // namespace

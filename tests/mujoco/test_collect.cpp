@@ -192,5 +192,66 @@ TEST(MujocoExpert, QueryableAtAnyStateWithinBoundsAndSeeded) {
   EXPECT_NE(a.describe().find("mppi samples=8 horizon=4"), std::string::npos) << a.describe();
 }
 
+TEST(MujocoExpert, DefaultsFillOnlyWhatIsUnsetAndBadSmoothingIsOneLine) {
+  PlannerOptions given;
+  given.samples = 5;
+  given.smoothing = 0.0;  // 0 is a value here (white noise), not "default"
+  const PlannerOptions o = planner_defaults("halfcheetah", given);
+  EXPECT_EQ(o.samples, 5);
+  EXPECT_EQ(o.smoothing, 0.0);
+  EXPECT_GT(o.horizon, 0);
+  EXPECT_GT(o.iterations, 0);
+  EXPECT_GT(o.sigma, 0.0);
+  EXPECT_GT(o.temperature, 0.0);
+  EXPECT_GE(o.terminal_steps, 0.0);
+  given.smoothing = 1.0;
+  try {
+    planner_defaults("hopper", given);
+    FAIL() << "smoothing 1 must throw";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("smoothing"), std::string::npos) << e.what();
+    EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << e.what();
+  }
+}
+
+TEST(MujocoExpert, IterationsCostSamplesTimesHorizonEachAndSmoothingStaysSeeded) {
+  PlannerOptions p;
+  p.samples = 6;
+  p.horizon = 3;
+  p.iterations = 2;
+  p.smoothing = 0.7;
+  p.terminal_steps = 5;
+  p.seed = 11;
+  PlannerExpert a("hopper", p), b("hopper", p);
+  Env env("hopper");
+  env.reset(4);
+  const std::vector<double> x = a.act(env.state()), y = b.act(env.state());
+  EXPECT_EQ(x, y);
+  EXPECT_EQ(a.simulated_steps(), 6 * 3 * 2);
+  p.seed = 12;
+  PlannerExpert c("hopper", p);
+  EXPECT_NE(c.act(env.state()), x) << "another seed draws other noise";
+}
+
+// The planner does what it is for: on reacher (no termination, cheap), a few steps of it bring
+// the fingertip nearer the target than doing nothing does.
+TEST(MujocoExpert, ReacherPlannerBeatsDoingNothing) {
+  PlannerOptions p;
+  p.samples = 16;
+  p.horizon = 10;
+  p.seed = 1;
+  PlannerExpert expert("reacher", p);
+  Env planned("reacher"), idle("reacher");
+  planned.reset(5);
+  idle.reset(5);
+  double planned_return = 0, idle_return = 0;
+  const std::vector<double> zero(2, 0.0);
+  for (int t = 0; t < 15; ++t) {
+    planned_return += planned.step(expert.act(planned.state())).reward;
+    idle_return += idle.step(zero).reward;
+  }
+  EXPECT_GT(planned_return, idle_return);
+}
+
 }  // namespace
 }  // namespace cd::mj
