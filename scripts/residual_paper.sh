@@ -2,7 +2,8 @@
 # Reproduces seed 001's driving tables (appendix B: tables 7-11 and the branches ablation) on
 # causaldrive's towns with configs/residual_paper.toml.
 #
-#   scripts/residual_paper.sh train     # town-a expert data + every method and ablation, all seeds
+#   scripts/residual_paper.sh train     # town-a expert data + the seven methods, all seeds
+#   scripts/residual_paper.sh train-ablations  # two-stream bc-oh/keyframe, residual 2 and 4 branches
 #   scripts/residual_paper.sh table7    # failure modes, training town (town-a regular, dense)
 #   scripts/residual_paper.sh table8    # failure modes, new sensor (town-a, eval.sensor shifted)
 #   scripts/residual_paper.sh table9    # failure modes, new town (town-b regular, dense)
@@ -67,6 +68,12 @@ train_all() {
     for m in $METHODS; do
       "$CD" train --config "$CONFIG" --method "$m" --data "$DATA" --seed "$s" --out "$T/$m"
     done
+  done
+}
+
+train_ablations() {
+  for s in $SEEDS; do
+    local T=$OUT/train/seed$s
     for entry in "${ABLATIONS[@]}"; do
       IFS='|' read -r label method _ <<<"$entry"
       "$CD" train --config "$(ablation_config "$label")" --method "$method" --data "$DATA" \
@@ -105,6 +112,7 @@ A="town-a-regular town-a-dense"
 B="town-b-regular town-b-dense"
 case ${1:-} in
   train) train_all ;;
+  train-ablations) train_ablations ;;
   table7) eval_agents table7 failure,lights clean "$A" $METHODS ;;
   table8) eval_agents table8 failure shifted "$A" $METHODS ;;
   table9) eval_agents table9 failure clean "$B" $METHODS ;;
@@ -117,6 +125,7 @@ case ${1:-} in
   probe) probe_all ;;
   all)
     "$0" train
+    "$0" train-ablations
     for step in table7 table8 table9 stopgo table10 table11 branches probe; do "$0" "$step"; done
     ;;
   *)
