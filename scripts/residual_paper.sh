@@ -129,7 +129,7 @@ case ${1:-} in
     for step in table7 table8 table9 stopgo table10 table11 branches probe; do "$0" "$step"; done
     ;;
   *)
-    sed -n '2,22p' "$0" | sed 's/^# \{0,1\}//'
+    sed -n '2,24p' "$0" | sed 's/^# \{0,1\}//'
     exit 2
     ;;
 esac

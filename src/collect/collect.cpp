@@ -14,6 +14,7 @@
 #include "core/fault.hpp"
 #include "core/progress.hpp"
 #include "core/worker_pool.hpp"
+#include "data/h5_io.hpp"
 #include "data/h5_episode.hpp"
 #include "world/town.hpp"
 
@@ -26,14 +27,7 @@ namespace {
 constexpr int kMaxAttempts = 2;  // a worker that dies is retried once per episode
 
 bool episode_complete(const std::string& path) {
-  std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) return false;
-  try {
-    read_episode_meta(path);
-    return true;
-  } catch (const Error&) {
-    return false;  // a damaged file is recorded again
-  }
+  return h5::episode_complete(path, [](const std::string& p) { read_episode_meta(p); });
 }
 
 }  // namespace

@@ -254,4 +254,16 @@ void write_atomically(const std::string& path, const std::function<void(const st
   }
 }
 
+bool episode_complete(const std::string& path,
+                      const std::function<void(const std::string&)>& read_meta) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return false;
+  try {
+    read_meta(path);
+    return true;
+  } catch (const Error&) {
+    return false;
+  }
+}
+
 }  // namespace cd::h5

@@ -130,6 +130,11 @@ H5Id create_file(const std::string& path);
 // fsynced and renamed. Any failure removes the temporary and throws IoError naming `path`.
 void write_atomically(const std::string& path, const std::function<void(const std::string&)>& write);
 
+// Whether `path` is a finished episode file: it exists and read_meta(path) reads it without an
+// Error (a damaged or half-written file is recorded again by a resumed collection).
+bool episode_complete(const std::string& path,
+                      const std::function<void(const std::string&)>& read_meta);
+
 template <typename T>
 void write_scalar_attribute(hid_t obj, const std::string& name, hid_t file_type, hid_t mem_type,
                             T value) {

@@ -15,6 +15,7 @@
 #include "core/error.hpp"
 #include "core/progress.hpp"
 #include "core/worker_pool.hpp"
+#include "data/h5_io.hpp"
 
 namespace fs = std::filesystem;
 
@@ -25,14 +26,7 @@ namespace {
 constexpr int kMaxAttempts = 2;  // a worker that dies is retried once per episode
 
 bool episode_complete(const std::string& path) {
-  std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) return false;
-  try {
-    read_mujoco_episode_meta(path);
-    return true;
-  } catch (const Error&) {
-    return false;  // a damaged file is recorded again
-  }
+  return h5::episode_complete(path, [](const std::string& p) { read_mujoco_episode_meta(p); });
 }
 
 void validate(const CollectOptions& o) {
