@@ -345,8 +345,14 @@ TEST_P(FamilyMethods, SameSeedSameBytesAndResumeEqualsOneRun) {
   EXPECT_GE(ctl.brake, 0.0);
   EXPECT_LE(ctl.brake, 1.0);
 
-  // A folder of another method is refused.
+  // A folder of another method is refused, and so is one trained with other method settings.
   EXPECT_THROW(make_agent(method == "hd" ? "fca" : "hd", a, Settings{}), ConfigError);
+  Settings other = s;
+  other.residual.branches = 2;
+  other.fca.adversary_weight = 1.0;
+  other.keyframe.top_weight = 3.0;
+  other.hd.p = 0.25;
+  EXPECT_THROW(train(dir, method, "a", 3, other), ConfigError);
 }
 
 INSTANTIATE_TEST_SUITE_P(Seed001, FamilyMethods,
