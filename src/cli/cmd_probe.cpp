@@ -14,7 +14,7 @@ void add_probe(CLI::App& app) {
   CLI::App* sub = app.add_subcommand(
       "probe", "copycat probe of a history policy: its output at standstill behind a real, a "
                "moving and a static history");
-  sub->add_option("--checkpoint", opt->checkpoint, "checkpoint folder of a history policy (bc-oh)")
+  sub->add_option("--checkpoint", opt->checkpoint, "checkpoint folder of a history policy (bc-oh, residual, fca, keyframe, hd, dagger)")
       ->required();
   sub->add_option("--data,-d", opt->data, "data folder of `causaldrive collect`")->required();
   sub->add_option("--max-frames", opt->max_frames,
