@@ -20,7 +20,7 @@ inline constexpr const char* kDrivingDomain = "driving";
 // byte is 1), byte / 255 for RGB bytes. The one conversion of training and inference.
 inline void frame_bytes_to_unit(FrameLayout layout, const uint8_t* in, size_t n, float* out) {
   if (layout == FrameLayout::Bytes) {
-    for (size_t i = 0; i < n; ++i) out[i] = static_cast<float>(in[i]) * (1.0f / 255.0f);
+    for (size_t i = 0; i < n; ++i) out[i] = static_cast<float>(in[i]) / 255.0f;
   } else {
     for (size_t i = 0; i < n; ++i) out[i] = in[i] ? 1.0f : 0.0f;
   }
