@@ -138,6 +138,28 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
   return r;
 }
 
+void claim_eval_folder(const std::string& out, const nlohmann::json& run,
+                       const std::vector<std::string>& keys,
+                       const std::function<void(nlohmann::json&)>& upgrade) {
+  const std::string run_path = out + "/run.json";
+  if (!fs::exists(run_path)) {
+    write_file_atomic(run_path, run.dump(2) + "\n");
+    return;
+  }
+  nlohmann::json prev;
+  try {
+    prev = nlohmann::json::parse(read_file_bytes(run_path));
+  } catch (const std::exception&) {
+    throw DataError(run_path + " is damaged; remove it or use another --out");
+  }
+  if (upgrade) upgrade(prev);
+  for (const std::string& key : keys)
+    if (prev.value(key, nlohmann::json()) != run.value(key, nlohmann::json()))
+      throw ConfigError(out + " holds another evaluation (" + key + " " +
+                        prev.value(key, nlohmann::json()).dump() + ", now " +
+                        run.value(key, nlohmann::json()).dump() + "); use another --out");
+}
+
 EvalReport run_eval(const Settings& base, const EvalRequest& req) {
   Suite suite = load_suite(base.eval.suite);
   Settings settings = base;
@@ -164,24 +186,11 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
                         {"traffic", suite.traffic}, {"trials", trials},
                         {"checkpoint", req.checkpoint}, {"sensor", settings.eval.sensor}};
   if (settings.eval.sensor != "clean") run["sensor_shift"] = sensor_shift_json(settings.eval);
-  const std::string run_path = out + "/run.json";
-  if (fs::exists(run_path)) {
-    nlohmann::json prev;
-    try {
-      prev = nlohmann::json::parse(read_file_bytes(run_path));
-    } catch (const std::exception&) {
-      throw DataError(run_path + " is damaged; remove it or use another --out");
-    }
-    // Folders written before eval.sensor existed hold clean runs.
-    if (!prev.contains("sensor")) prev["sensor"] = "clean";
-    for (const char* key : {"agent", "suite", "trials", "checkpoint", "sensor", "sensor_shift"})
-      if (prev.value(key, nlohmann::json()) != run.value(key, nlohmann::json()))
-        throw ConfigError(out + " holds another evaluation (" + key + " " +
-                          prev.value(key, nlohmann::json()).dump() + ", now " +
-                          run.value(key, nlohmann::json()).dump() + "); use another --out");
-  } else {
-    write_file_atomic(run_path, run.dump(2) + "\n");
-  }
+  // Folders written before eval.sensor existed hold clean runs.
+  claim_eval_folder(out, run, {"agent", "suite", "trials", "checkpoint", "sensor", "sensor_shift"},
+                    [](nlohmann::json& prev) {
+                      if (!prev.contains("sensor")) prev["sensor"] = "clean";
+                    });
 
   std::vector<EpisodeResult> results(total);
   std::vector<int> todo;

@@ -2,6 +2,7 @@
 // `causaldrive eval`: an agent on every task x trial of a suite, episodes in parallel worker
 // processes, one JSON record per finished episode (so a rerun resumes), results.json with
 // the summary (SPEC section 5).
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -47,6 +48,13 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
 // Runs the suite settings.eval.suite into settings.eval.out (settings.world.town and traffic
 // are taken from the suite). Throws ConfigError when the folder holds another run.
 EvalReport run_eval(const Settings& settings, const EvalRequest& request);
+
+// What an evaluation folder holds, shared by the driving and the MuJoCo-Image eval: run.json
+// (the run's identity) is written when absent; when present, each of `keys` must match, or
+// ConfigError (the records would mix). `upgrade` fills keys that older folders lack.
+void claim_eval_folder(const std::string& out, const nlohmann::json& run,
+                       const std::vector<std::string>& keys,
+                       const std::function<void(nlohmann::json&)>& upgrade = {});
 
 // The table printed after a run (Markdown).
 std::string results_table(const nlohmann::json& results);

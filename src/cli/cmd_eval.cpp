@@ -7,6 +7,7 @@
 #include "cli/common.hpp"
 #include "core/error.hpp"
 #include "methods/method.hpp"
+#include "mujoco/eval.hpp"
 
 namespace cd::cli {
 
@@ -16,7 +17,39 @@ struct EvalArgs {
   std::string config, agent, checkpoint, suite, out, label, sensor;
   int workers = 0, trials = 0;
   bool list = false, quiet = false, trace = false;
+  // MuJoCo-Image (--env)
+  std::string env;
+  int episodes = 0, max_steps = 0;
+  int64_t seed = -1;
 };
+
+// eval --env NAME: the MuJoCo-Image domain; the driving options do not apply.
+void eval_mujoco(const EvalArgs& a) {
+  for (const auto& [given, flag] : {std::pair{!a.config.empty(), "--config"},
+                                    {!a.suite.empty(), "--suite"},
+                                    {a.trials > 0, "--trials"},
+                                    {!a.sensor.empty(), "--sensor"},
+                                    {!a.label.empty(), "--label"},
+                                    {a.trace, "--trace"}}) {
+    if (given) throw ConfigError(std::string(flag) + " is a driving option; it does not apply with --env");
+  }
+  mj::EvalOptions o;
+  o.env = a.env;
+  o.agent = a.agent;
+  o.checkpoint = a.checkpoint;
+  o.out = a.out;
+  if (a.episodes > 0) o.episodes = a.episodes;
+  if (a.workers > 0) o.workers = a.workers;
+  if (a.seed >= 0) o.seed = static_cast<uint64_t>(a.seed);
+  o.max_steps = a.max_steps;
+  o.quiet = a.quiet;
+  const mj::EvalReport r = mj::evaluate(o);
+  std::printf("%s", mj::eval_table(r.results).c_str());
+  std::printf("results: %s/results.json (%d episodes run now", o.out.c_str(), r.run_now);
+  if (r.run_now > 0 && r.seconds > 0)
+    std::printf(", %ld steps in %.1f s, %.0f steps/s", r.steps, r.seconds, r.steps / r.seconds);
+  std::printf(")\n");
+}
 
 void list_suites() {
   std::printf("built-in suites:\n");
@@ -52,6 +85,20 @@ void add_eval(CLI::App& app) {
                   "(eval.sensor)")
       ->check(CLI::IsMember({"clean", "shifted"}));
   sub->add_option("--label", a->label, "row name in tables (default: the agent name)");
+  CLI::Option* env = sub->add_option(
+      "--env", a->env,
+      "MuJoCo-Image environment (halfcheetah, hopper, ant, reacher, humanoid) instead of a "
+      "driving suite; agents: expert, random or a family method with --checkpoint; needs --out");
+  sub->add_option("--episodes,-n", a->episodes, "with --env: seeded episodes (default 1)")
+      ->check(CLI::PositiveNumber)
+      ->needs(env);
+  sub->add_option("--seed", a->seed, "with --env: run seed of the episodes' initial states")
+      ->check(CLI::NonNegativeNumber)
+      ->needs(env);
+  sub->add_option("--max-steps", a->max_steps,
+                  "with --env: end episodes after this many steps (default: the env's limit)")
+      ->check(CLI::PositiveNumber)
+      ->needs(env);
   sub->add_flag("--list-suites", a->list, "list the built-in suites and agents");
   sub->add_flag("--quiet,-q", a->quiet, "no progress output");
   sub->add_flag("--trace", a->trace,
@@ -60,6 +107,7 @@ void add_eval(CLI::App& app) {
   sub->callback([a] {
     if (a->list) return list_suites();
     if (a->agent.empty()) throw ConfigError("eval needs --agent NAME (see --list-suites)");
+    if (!a->env.empty()) return eval_mujoco(*a);
     Settings s = settings_from(a->config);
     if (!a->suite.empty()) s.eval.suite = a->suite;
     if (a->workers > 0) s.eval.workers = a->workers;

@@ -1,5 +1,6 @@
 #include "data/mujoco_episode.hpp"
 
+#include <algorithm>
 #include <set>
 
 #include "core/error.hpp"
@@ -134,6 +135,15 @@ MujocoEpisode read_mujoco_episode(const std::string& path) {
     MujocoEpisode e = read_meta(file.get());
     read_data(file.get(), e);
     return e;
+  });
+}
+
+std::string read_episode_domain(const std::string& path) {
+  return guarded_read(path, [&] {
+    H5Id file = open_for_reading(path);
+    const std::vector<std::string> names = attribute_names(file.get());
+    if (std::find(names.begin(), names.end(), "domain") == names.end()) return std::string("driving");
+    return read_string_attribute(file.get(), "domain");
   });
 }
 

@@ -48,6 +48,10 @@ void write_mujoco_episode(const std::string& path, const MujocoEpisode& episode)
 // another domain).
 MujocoEpisode read_mujoco_episode(const std::string& path);
 
+// The file's `domain` attribute, "driving" when it has none (driving files predate it).
+// IoError for a missing file, DataError for one HDF5 cannot open.
+std::string read_episode_domain(const std::string& path);
+
 // Only the attributes (no datasets): cheap, used to check that a file is complete when resuming.
 MujocoEpisode read_mujoco_episode_meta(const std::string& path);
 

@@ -7,6 +7,7 @@
 #include "core/bitplanes.hpp"
 #include "core/error.hpp"
 #include "data/h5_episode.hpp"
+#include "data/mujoco_episode.hpp"
 
 namespace cd {
 
@@ -19,7 +20,8 @@ long EpisodeSet::total_frames() const {
 }
 
 void EpisodeSet::planes01(int e, int t, float* out) const {
-  const uint8_t* p = episodes[e].packed.data() + static_cast<size_t>(t) * frame_pixels();
+  const uint8_t* p = episodes[e].frame_data.data() + static_cast<size_t>(t) * stored_frame_bytes();
+  if (layout == FrameLayout::Bytes) return frame_bytes_to_unit(layout, p, frame_values(), out);
   const size_t n = frame_pixels();
   for (int c = 0; c < channels; ++c) {
     float* plane = out + static_cast<size_t>(c) * n;
@@ -28,8 +30,12 @@ void EpisodeSet::planes01(int e, int t, float* out) const {
 }
 
 void EpisodeSet::planes255(int e, int t, uint8_t* out) const {
-  unpack_planes(episodes[e].packed.data() + static_cast<size_t>(t) * frame_pixels(),
-                frame_pixels(), channels, out);
+  const uint8_t* p = episodes[e].frame_data.data() + static_cast<size_t>(t) * stored_frame_bytes();
+  if (layout == FrameLayout::Bytes) {
+    std::copy_n(p, frame_values(), out);
+    return;
+  }
+  unpack_planes(p, frame_pixels(), channels, out);
 }
 
 std::vector<std::string> list_episode_files(const std::string& dir) {
@@ -60,12 +66,12 @@ PackedEpisode pack(const std::string& path, const EpisodeData& d) {
   p.frames = static_cast<int>(d.frames());
   const size_t pixels = d.frame_pixels();
   if (!d.bev_packed.empty()) {
-    p.packed.assign(d.bev_packed.begin(), d.bev_packed.end());
+    p.frame_data.assign(d.bev_packed.begin(), d.bev_packed.end());
   } else {
-    p.packed.assign(static_cast<size_t>(p.frames) * pixels, 0);
+    p.frame_data.assign(static_cast<size_t>(p.frames) * pixels, 0);
     for (int t = 0; t < p.frames; ++t) {
       const uint8_t* frame = d.bev.data() + static_cast<size_t>(t) * d.frame_bytes();
-      uint8_t* out = p.packed.data() + static_cast<size_t>(t) * pixels;
+      uint8_t* out = p.frame_data.data() + static_cast<size_t>(t) * pixels;
       for (int c = 0; c < d.channels; ++c) {
         const uint8_t* plane = frame + static_cast<size_t>(c) * pixels;
         for (size_t i = 0; i < pixels; ++i) out[i] |= static_cast<uint8_t>((plane[i] != 0) << c);
@@ -82,7 +88,113 @@ PackedEpisode pack(const std::string& path, const EpisodeData& d) {
   return p;
 }
 
+// A MuJoCo-Image episode as stored: RGB bytes, no speed, command 0, no pose or causes.
+PackedEpisode keep_bytes(const std::string& path, MujocoEpisode& m) {
+  PackedEpisode p;
+  p.file = fs::path(path).filename().string();
+  p.frames = static_cast<int>(m.frames());
+  p.frame_data = std::move(m.obs);
+  p.speed.assign(m.frames(), 0.0f);
+  p.action = std::move(m.action);
+  p.command.assign(m.frames(), 0);
+  return p;
+}
+
+// Reads one file of either domain into `set` (the first file fixes the set's format).
+void add_episode(EpisodeSet& set, const std::string& path, bool keep_full_path) {
+  auto bad = [&](const std::string& why) { throw DataError("episode file " + path + ": " + why); };
+  auto rethrow = [&](const Error& e) {
+    std::string msg = e.what();
+    throw DataError(msg.find(path) != std::string::npos ? msg : path + ": " + msg);
+  };
+  const bool first = set.episodes.empty();
+  std::string domain;
+  try {
+    domain = read_episode_domain(path);
+  } catch (const Error& e) {
+    rethrow(e);
+  }
+  if (!first && domain != set.domain)
+    bad("is " + domain + " data but " + set.episodes.front().file + " is " + set.domain +
+        "; a data folder must hold one domain");
+  int channels = 0, height = 0, width = 0, action_dim = 0;
+  PackedEpisode p;
+  if (domain == kMujocoDomain) {
+    MujocoEpisode m;
+    try {
+      m = read_mujoco_episode(path);
+    } catch (const Error& e) {
+      rethrow(e);
+    }
+    for (float v : m.action)
+      if (!std::isfinite(v)) bad("action holds a non-finite value");
+    if (first) {
+      set.domain = kMujocoDomain;
+      set.env = m.env;
+      set.layout = FrameLayout::Bytes;
+      set.dt = m.dt;
+      set.metres_per_pixel = 0;  // not a map
+      set.channel_names = {"red", "green", "blue"};
+    } else if (m.env != set.env) {
+      bad("holds env '" + m.env + "' but " + set.episodes.front().file + " holds '" + set.env +
+          "'; a data folder must hold one env");
+    }
+    channels = m.channels, height = m.height, width = m.width, action_dim = m.action_dim;
+    if (first) set.action_dim = action_dim;
+    p = keep_bytes(path, m);
+  } else {
+    EpisodeMeta meta;
+    EpisodeData d;
+    try {
+      d = read_episode(path, &meta);
+    } catch (const Error& e) {
+      rethrow(e);
+    }
+    if (d.channels > kMaxPackedChannels)
+      bad("has " + std::to_string(d.channels) + " BEV channels; training supports at most " +
+          std::to_string(kMaxPackedChannels));
+    if (d.action_dim != 2) bad("actions should be (throttle, brake), found " +
+                               std::to_string(d.action_dim) + " columns");
+    for (float v : d.speed)
+      if (!std::isfinite(v)) bad("speed holds a non-finite value");
+    for (float v : d.action)
+      if (!std::isfinite(v)) bad("action holds a non-finite value");
+    if (first) {
+      set.dt = meta.dt;
+      set.metres_per_pixel = meta.metres_per_pixel;
+      set.channel_names = meta.channels;
+    }
+    channels = d.channels, height = d.height, width = d.width, action_dim = d.action_dim;
+    p = pack(path, d);
+  }
+  if (first) {
+    set.channels = channels;
+    set.height = height;
+    set.width = width;
+  } else if (channels != set.channels || height != set.height || width != set.width) {
+    bad("frames are " + std::to_string(channels) + "x" + std::to_string(height) + "x" +
+        std::to_string(width) + " but " + set.episodes.front().file + " has " +
+        std::to_string(set.channels) + "x" + std::to_string(set.height) + "x" +
+        std::to_string(set.width) + "; a data folder must hold one frame format");
+  } else if (action_dim != set.action_dim) {
+    bad("has " + std::to_string(action_dim) + " action components but " +
+        set.episodes.front().file + " has " + std::to_string(set.action_dim));
+  }
+  set.episodes.push_back(std::move(p));
+  if (keep_full_path) set.episodes.back().file = path;  // names repeat across folders
+}
+
 }  // namespace
+
+std::string data_domain(const std::string& dir) {
+  const std::string first = list_episode_files(dir).front();
+  try {
+    return read_episode_domain(first);
+  } catch (const Error& e) {
+    std::string msg = e.what();
+    throw DataError(msg.find(first) != std::string::npos ? msg : first + ": " + msg);
+  }
+}
 
 EpisodeSet load_episode_set(const std::string& dir) {
   return load_episode_set(std::vector<std::string>{dir});
@@ -95,41 +207,7 @@ EpisodeSet load_episode_set(const std::vector<std::string>& dirs) {
     set.dir += (set.dir.empty() ? "" : " + ") + dir;
     for (std::string& p : list_episode_files(dir)) paths.push_back(std::move(p));
   }
-  for (const std::string& path : paths) {
-    EpisodeMeta meta;
-    EpisodeData d;
-    try {
-      d = read_episode(path, &meta);
-    } catch (const Error& e) {
-      std::string msg = e.what();
-      throw DataError(msg.find(path) != std::string::npos ? msg : path + ": " + msg);
-    }
-    auto bad = [&](const std::string& why) { throw DataError("episode file " + path + ": " + why); };
-    if (d.channels > kMaxPackedChannels)
-      bad("has " + std::to_string(d.channels) + " BEV channels; training supports at most " +
-          std::to_string(kMaxPackedChannels));
-    if (d.action_dim != 2) bad("actions should be (throttle, brake), found " +
-                               std::to_string(d.action_dim) + " columns");
-    for (float v : d.speed)
-      if (!std::isfinite(v)) bad("speed holds a non-finite value");
-    for (float v : d.action)
-      if (!std::isfinite(v)) bad("action holds a non-finite value");
-    if (set.episodes.empty()) {
-      set.channels = d.channels;
-      set.height = d.height;
-      set.width = d.width;
-      set.dt = meta.dt;
-      set.metres_per_pixel = meta.metres_per_pixel;
-      set.channel_names = meta.channels;
-    } else if (d.channels != set.channels || d.height != set.height || d.width != set.width) {
-      bad("frames are " + std::to_string(d.channels) + "x" + std::to_string(d.height) + "x" +
-          std::to_string(d.width) + " but " + set.episodes.front().file + " has " +
-          std::to_string(set.channels) + "x" + std::to_string(set.height) + "x" +
-          std::to_string(set.width) + "; a data folder must hold one BEV format");
-    }
-    set.episodes.push_back(pack(path, d));
-    if (dirs.size() > 1) set.episodes.back().file = path;  // names repeat across folders
-  }
+  for (const std::string& path : paths) add_episode(set, path, dirs.size() > 1);
   return set;
 }
 

@@ -1,6 +1,10 @@
 #pragma once
-// The episodes of a data folder (the output of `causaldrive collect`) in memory, frames kept
-// packed: one byte per pixel, bit c = channel c (core/bitplanes.hpp), 8x smaller than planes.
+// The episodes of a data folder (the output of `causaldrive collect`) in memory, in one of two
+// frame layouts behind the same accessors (planes01, planes255):
+//   BitPlanes  driving BEV: one byte per pixel, bit c = channel c (core/bitplanes.hpp), 8x
+//              smaller than planes; a value is 0 or 1 (0 or 255 as bytes);
+//   Bytes      MuJoCo-Image RGB: the frame's C x H x W bytes as recorded; a value is byte / 255.
+// The domain says which (the file's `domain` attribute; driving files have none).
 #include <cstdint>
 #include <map>
 #include <string>
@@ -8,13 +12,27 @@
 
 namespace cd {
 
+enum class FrameLayout { BitPlanes, Bytes };
+
+inline constexpr const char* kDrivingDomain = "driving";
+
+// A frame given as C*H*W bytes (planes255) as network input: 0/1 for bit planes (any non-zero
+// byte is 1), byte / 255 for RGB bytes. The one conversion of training and inference.
+inline void frame_bytes_to_unit(FrameLayout layout, const uint8_t* in, size_t n, float* out) {
+  if (layout == FrameLayout::Bytes) {
+    for (size_t i = 0; i < n; ++i) out[i] = static_cast<float>(in[i]) / 255.0f;
+  } else {
+    for (size_t i = 0; i < n; ++i) out[i] = in[i] ? 1.0f : 0.0f;
+  }
+}
+
 struct PackedEpisode {
   std::string file;              // file name inside the folder
   int frames = 0;                // T
-  std::vector<uint8_t> packed;   // T*H*W
-  std::vector<float> speed;      // T, m/s
+  std::vector<uint8_t> frame_data;  // BitPlanes: T*H*W; Bytes: T*C*H*W
+  std::vector<float> speed;      // T, m/s (MuJoCo: zeros, the domain has no ego speed)
   std::vector<float> action;     // T*A: the expert's label (driving: throttle, brake)
-  std::vector<int32_t> command;  // T, cd::Command
+  std::vector<int32_t> command;  // T, cd::Command (MuJoCo: zeros)
   std::vector<float> path_free;  // T, ground truth 0/1; empty when the file has none
   std::vector<float> pose;       // T*3: x, y (m, network frame), heading (rad, 0 = east, CCW)
   // Every ground-truth series of the file's causes/ group (lead_distance, tl_state, ...).
@@ -23,6 +41,9 @@ struct PackedEpisode {
 
 struct EpisodeSet {
   std::string dir;
+  std::string domain = kDrivingDomain;  // driving | mujoco (data/mujoco_episode.hpp)
+  std::string env;                      // MuJoCo: the environment's name; driving: empty
+  FrameLayout layout = FrameLayout::BitPlanes;
   int channels = 0, height = 0, width = 0;
   double dt = 0.1;                 // s between frames
   double metres_per_pixel = 0.5;
@@ -31,10 +52,15 @@ struct EpisodeSet {
   std::vector<PackedEpisode> episodes;  // in file-name order
 
   size_t frame_pixels() const { return static_cast<size_t>(height) * width; }
+  // Bytes of one stored frame (frame_data holds `frames` of them).
+  size_t stored_frame_bytes() const {
+    return layout == FrameLayout::Bytes ? frame_values() : frame_pixels();
+  }
   size_t frame_values() const { return static_cast<size_t>(channels) * frame_pixels(); }
   long total_frames() const;
-  // Frame t of episode e as C planes of 0/1 floats (network input) or 0/255 bytes (what
-  // agents are given); `out` holds frame_values() values.
+  // Frame t of episode e as C planes of floats in [0,1] (network input: 0/1 for bit planes,
+  // byte / 255 for RGB) or of bytes (what agents are given: 0/255 for bit planes, the RGB
+  // bytes as recorded); `out` holds frame_values() values.
   void planes01(int e, int t, float* out) const;
   void planes255(int e, int t, uint8_t* out) const;
 };
@@ -43,10 +69,15 @@ struct EpisodeSet {
 // missing or holds no episode file.
 std::vector<std::string> list_episode_files(const std::string& dir);
 
-// Reads every episode of `dir`. Throws DataError naming the file for a damaged episode, one
-// whose shape or channels differ from the first, one without (throttle, brake) actions, or
-// frames with more than 8 channels.
+// Reads every episode of `dir`: driving files (BitPlanes) or MuJoCo-Image files (Bytes, told by
+// the file's `domain` attribute). Throws DataError naming the file for a damaged episode, one
+// whose shape, channels, domain, env or action size differ from the first, a driving one without
+// (throttle, brake) actions, or driving frames with more than 8 channels.
 EpisodeSet load_episode_set(const std::string& dir);
+// The domain of a data folder from its first episode file's attributes (cheap: no datasets
+// read): "mujoco" or "driving". Throws DataError like list_episode_files.
+std::string data_domain(const std::string& dir);
+
 // The episodes of several folders in order, as one set (dagger's aggregate); same checks,
 // and every folder must hold the same frame format.
 EpisodeSet load_episode_set(const std::vector<std::string>& dirs);

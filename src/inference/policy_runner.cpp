@@ -4,6 +4,8 @@
 
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "data/mujoco_episode.hpp"
+#include "datasets/episode_set.hpp"
 #include "nn/policy_nets.hpp"
 
 namespace cd {
@@ -38,7 +40,7 @@ PolicyRunner::PolicyRunner(const std::string& dir, const std::string& expected_m
   const InputFormat& in = m.ck.input;
   m.nets = std::make_unique<PolicyNets>(policy_layout(m.ck.method, m.ck.model, m.ck.residual,
                                                       m.ck.fca, in.channels, in.height, in.width,
-                                                      in.action_dim));
+                                                      in.action_dim, in.domain));
   const std::string path = dir + "/" + weights_file;
   std::string bytes;
   try {
@@ -73,11 +75,11 @@ const std::vector<std::string>& policy_runner_methods() {
 
 void PolicyRunner::Impl::fill(const uint8_t* const* frames, double speed_value, int command_value) {
   float* img = image.data_ptr<float>();
-  for (int k = 0; k < ck.input.history; ++k) {
-    const uint8_t* f = frames[k];
-    float* dst = img + static_cast<size_t>(k) * frame_values;
-    for (size_t i = 0; i < frame_values; ++i) dst[i] = f[i] ? 1.0f : 0.0f;
-  }
+  const FrameLayout layout = ck.input.domain == kMujocoDomain ? FrameLayout::Bytes
+                                                              : FrameLayout::BitPlanes;
+  for (int k = 0; k < ck.input.history; ++k)
+    frame_bytes_to_unit(layout, frames[k], frame_values,
+                        img + static_cast<size_t>(k) * frame_values);
   speed.data_ptr<float>()[0] = ck.model.speed_input ? static_cast<float>(speed_value) : 0.0f;
   command.data_ptr<int64_t>()[0] = std::clamp(command_value, 0, 3);
 }
@@ -127,7 +129,7 @@ PolicyStep PolicyRunner::Impl::step(torch::Tensor a, bool target_speed_head) {
   PolicyStep s;
   if (target_speed_head) {
     s.target_speed = std::max(0.0f, v[0]);
-  } else {
+  } else if (ck.input.domain != kMujocoDomain) {  // MuJoCo: last_action() is the action
     s.throttle = std::clamp(v[0], 0.0f, 1.0f);
     s.brake = std::clamp(v[1], 0.0f, 1.0f);
   }

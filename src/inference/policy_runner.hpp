@@ -13,7 +13,8 @@
 namespace cd {
 
 struct PolicyStep {
-  double throttle = 0, brake = 0;  // throttle_brake head, in [0,1]
+  double throttle = 0, brake = 0;  // throttle_brake head, in [0,1] (driving only; MuJoCo's
+                                   // action is PolicyRunner::last_action())
   double target_speed = std::numeric_limits<double>::quiet_NaN();  // target_speed head, m/s
   // The head's output as one number: throttle - brake, or the target speed.
   double scalar() const { return target_speed == target_speed ? target_speed : throttle - brake; }
@@ -51,7 +52,8 @@ class PolicyRunner {
   int stride() const;   // simulation steps between them
   bool target_speed_head() const;
 
-  // frames: history() pointers to C*H*W bytes (0/255, C x H x W of the checkpoint's input),
+  // frames: history() pointers to C*H*W bytes (driving: 0/255 planes; MuJoCo: RGB; C x H x W
+  // of the checkpoint's input),
   // oldest first. The speed is zeroed unless the model was trained with a speed input.
   // previous: the action executed one step before (A values); only residual's memory-only
   // residual controller reads it (a_{t-1} + the predicted residual); null means zeros.

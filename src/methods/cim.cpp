@@ -127,7 +127,7 @@ void fill_views(const EpisodeSet& eps, const GreyView& view, const std::pair<int
   at::parallel_for(0, n, 16, [&](int64_t lo, int64_t hi) {
     for (int64_t i = lo; i < hi; ++i) {
       const auto [e, t] = frames[rows ? rows[i] : i];
-      view_from_packed(view, eps.episodes[e].packed.data() + static_cast<size_t>(t) * eps.frame_pixels(),
+      view_from_packed(view, eps.episodes[e].frame_data.data() + static_cast<size_t>(t) * eps.frame_pixels(),
                        out + i * plane);
     }
   });
@@ -499,7 +499,7 @@ json train_predictor(const Settings& s, const std::string& method, const Episode
 std::vector<float> base_view(const EpisodeSet& eps, const GreyView& view, json& where) {
   std::vector<float> v(kVaeSize * kVaeSize);
   auto take = [&](int e, int t, const char* why) {
-    view_from_packed(view, eps.episodes[e].packed.data() + static_cast<size_t>(t) * eps.frame_pixels(),
+    view_from_packed(view, eps.episodes[e].frame_data.data() + static_cast<size_t>(t) * eps.frame_pixels(),
                      v.data());
     where = {{"episode", e}, {"t", t}, {"file", eps.episodes[e].file}, {"why", why}};
     return v;
@@ -512,7 +512,7 @@ std::vector<float> base_view(const EpisodeSet& eps, const GreyView& view, json& 
     }
   for (int e = 0; e < static_cast<int>(eps.episodes.size()); ++e)
     for (int t = 0; t < eps.episodes[e].frames; ++t) {
-      const uint8_t* p = eps.episodes[e].packed.data() + static_cast<size_t>(t) * eps.frame_pixels();
+      const uint8_t* p = eps.episodes[e].frame_data.data() + static_cast<size_t>(t) * eps.frame_pixels();
       for (size_t i = 0; i < eps.frame_pixels(); ++i)
         if (p[i] & view.mask) return take(e, t, "first frame with something in the view");
     }

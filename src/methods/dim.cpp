@@ -250,7 +250,7 @@ TrainSummary train_dim(const Settings& settings_in, const TrainRequest& req) {
     run.settings = settings_json;
     run.dim = d;
     run.input = {eps.channels, eps.height, eps.width, 1, 1, eps.action_dim, eps.dt, eps.metres_per_pixel,
-                 eps.channel_names};
+                 eps.channel_names, eps.domain, eps.env};
     run.data_dir = data_dir;
     run.train_samples = static_cast<long>(samples.train.size());
     run.val_samples = static_cast<long>(samples.val.size());

@@ -140,7 +140,7 @@ torch::Tensor policy_loss(const Settings& s, const PolicyOutput& out, const torc
 
 PolicyNetsLayout layout_for(const std::string& method, const Settings& s, const EpisodeSet& eps) {
   return policy_layout(method, s.model, s.residual, s.fca, eps.channels, eps.height, eps.width,
-                       eps.action_dim);
+                       eps.action_dim, eps.domain);
 }
 
 // ---- the trainer ----------------------------------------------------------------------------
@@ -207,7 +207,8 @@ TrainSummary train_policy_family(const Settings& settings_in, const TrainRequest
   ck.fca = s.fca;
   ck.device = dev.name;
   ck.input = {eps.channels,       eps.height, eps.width, s.model.history, s.model.history_stride,
-              eps.action_dim,     eps.dt,     eps.metres_per_pixel, eps.channel_names};
+              eps.action_dim,     eps.dt,     eps.metres_per_pixel, eps.channel_names,
+              eps.domain,         eps.env};
 
   fs::create_directories(out);
   settle_pending_files(out, ck.epochs_done);
@@ -296,7 +297,12 @@ namespace {
 class FamilyAgent : public Agent {
  public:
   FamilyAgent(const std::string& method, const std::string& dir, const Settings& s)
-      : method_(method), runner_(dir, method), pid_(s.control, EgoModel(s.ego), s.world.dt) {}
+      : method_(method), runner_(dir, method), pid_(s.control, EgoModel(s.ego), s.world.dt) {
+    const InputFormat& in = runner_.checkpoint().input;
+    if (in.domain != "driving")
+      throw ConfigError("checkpoint " + dir + " was trained on MuJoCo-Image data ('" + in.env +
+                        "'): evaluate it with `causaldrive eval --env " + in.env + "`");
+  }
 
   std::string name() const override { return method_; }
   int history() const override { return runner_.history(); }

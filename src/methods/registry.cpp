@@ -2,6 +2,9 @@
 #include <algorithm>
 
 #include "core/error.hpp"
+#include "data/mujoco_episode.hpp"
+#include "datasets/episode_set.hpp"
+#include "inference/policy_runner.hpp"
 #include "methods/method.hpp"
 
 namespace cd {
@@ -119,7 +122,27 @@ TrainSummary train_method(const Settings& settings, const TrainRequest& request)
     throw ConfigError("--init and --vae apply to the cim family only (" + join(reusing) +
                       "), not to '" + request.method + "'");
   }
-  return m.train(settings, request);
+  // MuJoCo-Image data (the folder's domain) trains the behaviour-cloning family only, and
+  // without a speed head: the domain has no ego speed (its speed label and input are zeros).
+  std::string domain;
+  try {
+    domain = data_domain(request.data_dir);
+  } catch (const DataError&) {
+    // a missing or empty folder: the method reports it in its own order
+  }
+  if (domain != kMujocoDomain) return m.train(settings, request);
+  if (request.method == "dagger")
+    throw ConfigError("dagger on MuJoCo-Image data is not supported yet (it needs rollouts in "
+                      "the env labelled by the planner); train bc-oh, residual, ... instead");
+  const std::vector<std::string>& family = policy_runner_methods();
+  if (std::find(family.begin(), family.end(), request.method) == family.end())
+    throw ConfigError("method '" + request.method + "' trains on driving data only; " +
+                      request.data_dir + " is MuJoCo-Image data (bc-so, bc-oh, residual, fca, "
+                      "keyframe, hd train on it)");
+  Settings s = settings;
+  s.model.speed_loss_weight = 0;
+  s.model.speed_input = false;
+  return m.train(s, request);
 }
 
 std::unique_ptr<Agent> make_agent(const std::string& name, const std::string& run_dir,

@@ -18,12 +18,18 @@ nn::Sequential leaky_mlp(int in, int hidden, int out) {
 
 PolicyNetsLayout policy_layout(const std::string& method, const ModelSettings& model,
                                const ResidualSettings& residual, const FcaSettings& fca,
-                               int frame_channels, int height, int width, int action_dim) {
+                               int frame_channels, int height, int width, int action_dim,
+                               const std::string& domain) {
   PolicyNetsLayout l;
   l.method = method;
   l.action_dim = action_dim;
   l.history = model.history;
-  l.action_output = model.action_head == "target_speed" ? "softplus" : "sigmoid";
+  if (model.action_head == "target_speed" && domain == "mujoco")
+    throw ConfigError("MuJoCo-Image data has no speed: set model.action_head = \"throttle_brake\" "
+                      "(the recorded action)");
+  l.action_output = model.action_head == "target_speed" ? "softplus"
+                    : domain == "mujoco"                ? "tanh"
+                                                        : "sigmoid";
   l.policy = policy_net_options(model, model.history * frame_channels, height, width);
   l.policy.action_dim = model.action_head == "target_speed" ? 1 : action_dim;
   if (method == "fca") {

@@ -36,14 +36,18 @@ struct PolicyNetsLayout {
   bool has_adversary = false;
   int adversary_hidden = 0;
   bool has_controller = false;
-  std::string action_output = "sigmoid";  // the squash of an action (policy and controller)
+  // The squash of an action (policy and controller): sigmoid for driving's throttle and brake
+  // in [0,1], tanh for MuJoCo-Image's actions in [-1,1], softplus for a target speed.
+  std::string action_output = "sigmoid";
 };
 
 // The layout of `method` for frames of `frame_channels` x height x width, `action_dim`
-// components (ConfigError for a setting the method cannot have).
+// components, data of `domain` (driving | mujoco: the action squash) (ConfigError for a setting
+// the method cannot have).
 PolicyNetsLayout policy_layout(const std::string& method, const ModelSettings& model,
                                const ResidualSettings& residual, const FcaSettings& fca,
-                               int frame_channels, int height, int width, int action_dim);
+                               int frame_channels, int height, int width, int action_dim,
+                               const std::string& domain = "driving");
 
 struct PolicyNets {
   explicit PolicyNets(const PolicyNetsLayout& layout);

@@ -43,6 +43,10 @@ json checkpoint_to_json(const Checkpoint& c) {
       {"metrics", metrics},
   };
   if (c.input.action_dim != 2) j["input"]["action_dim"] = c.input.action_dim;
+  if (c.input.domain != "driving") {
+    j["input"]["domain"] = c.input.domain;
+    j["input"]["env"] = c.input.env;
+  }
   if (!c.method_record.is_null()) j["method_record"] = c.method_record;
   return j;
 }
@@ -73,6 +77,11 @@ Checkpoint checkpoint_from_json(const json& j, const std::string& where) {
   c.input.metres_per_pixel = in.get<double>("metres_per_pixel");
   c.input.channel_names = in.get<std::vector<std::string>>("channel_names");
   if (f.at("input").contains("action_dim")) c.input.action_dim = in.get<int>("action_dim");
+  if (f.at("input").contains("domain")) {
+    c.input.domain = in.get<std::string>("domain");
+    c.input.env = in.get<std::string>("env");
+    if (c.input.domain != "mujoco") throw DataError(where + ": unknown input domain '" + c.input.domain + "'");
+  }
   if (j.contains("method_record")) c.method_record = j.at("method_record");
   if (c.input.channels < 1 || c.input.height < 1 || c.input.width < 1 || c.input.history < 1 ||
       c.input.stride < 1 || c.input.action_dim < 1)

@@ -38,6 +38,11 @@ struct InputFormat {
   int action_dim = 2;  // components of the recorded action
   double dt = 0.1, metres_per_pixel = 0.5;
   std::vector<std::string> channel_names;
+  // driving (BEV bit planes, actions in [0,1]) | mujoco (RGB bytes / 255, actions in [-1,1],
+  // the env's name); written to checkpoint.json only for mujoco, so driving records keep their
+  // bytes.
+  std::string domain = "driving";
+  std::string env;
 };
 
 struct Checkpoint {

@@ -19,7 +19,7 @@ Checkpoint sample_checkpoint() {
   c.method = "bc-oh";
   c.settings = settings_to_json(s);
   c.model = s.model;
-  c.input = {8, 64, 64, 4, 2, 2, 0.1, 0.5, {"a", "b"}};
+  c.input = {8, 64, 64, 4, 2, 2, 0.1, 0.5, {"a", "b"}, "driving", ""};
   c.data_dir = "/data";
   c.train_samples = 100;
   c.val_samples = 10;
