@@ -82,6 +82,7 @@ void visit_settings(S& st, V&& v) {
   v.number("control", "hold_brake", st.control.hold_brake, 0, 1);
 
   v.text("model", "backbone", st.model.backbone, {"small", "resnet34"});
+  v.text("model", "head", st.model.head, {"cilrs", "linear"});
   v.integer("model", "history", st.model.history, 1, 64);
   v.integer("model", "history_stride", st.model.history_stride, 1, 100);
   v.text("model", "action_head", st.model.action_head, {"throttle_brake", "target_speed"});
@@ -93,6 +94,7 @@ void visit_settings(S& st, V&& v) {
   v.integer("train", "epochs", st.train.epochs, 1, 100000);
   v.integer("train", "batch_size", st.train.batch_size, 1, 65536);
   v.number("train", "lr", st.train.lr, 1e-9, 1);
+  v.number("train", "weight_decay", st.train.weight_decay, 0, 1);
   v.text("train", "loss", st.train.loss, {"l1", "l2"});
   v.number("train", "val_fraction", st.train.val_fraction, 0, 0.9);
   v.integer("train", "lr_patience", st.train.lr_patience, 0, 1000);
@@ -185,6 +187,24 @@ void visit_settings(S& st, V&& v) {
   v.integer("dagger", "seed", st.dagger.seed, 0, kMaxI64);
   v.text("dagger", "town", st.dagger.town, {});
   v.text("dagger", "traffic", st.dagger.traffic, {});
+
+  v.integer("mujoco", "size", st.mujoco.size, 8, 1024);
+  v.integer("mujoco", "workers", st.mujoco.workers, 1, 256);
+  v.integer("mujoco", "seed", st.mujoco.seed, 0, kMaxI64);
+  v.integer("mujoco", "max_steps", st.mujoco.max_steps, 0, 1000000);
+  v.integer("mujoco", "eval_episodes", st.mujoco.eval_episodes, 1, 1000000);
+  v.integer("mujoco", "planner_samples", st.mujoco.planner_samples, 0, 100000);
+  v.integer("mujoco", "planner_horizon", st.mujoco.planner_horizon, 0, 100000);
+  v.integer("mujoco.episodes", "halfcheetah", st.mujoco.episodes.halfcheetah, 1, 1000000);
+  v.integer("mujoco.episodes", "hopper", st.mujoco.episodes.hopper, 1, 1000000);
+  v.integer("mujoco.episodes", "ant", st.mujoco.episodes.ant, 1, 1000000);
+  v.integer("mujoco.episodes", "reacher", st.mujoco.episodes.reacher, 1, 1000000);
+  v.integer("mujoco.episodes", "humanoid", st.mujoco.episodes.humanoid, 1, 1000000);
+  v.flag("mujoco.noise", "enabled", st.mujoco.noise.enabled);
+  v.number("mujoco.noise", "rate", st.mujoco.noise.rate, 0, 1);
+  v.integer("mujoco.noise", "min_steps", st.mujoco.noise.min_steps, 1, 100000);
+  v.integer("mujoco.noise", "max_steps", st.mujoco.noise.max_steps, 1, 100000);
+  v.number("mujoco.noise", "sigma", st.mujoco.noise.sigma, 0, 10);
 }
 
 // "world.density.regular" -> {"world", "density", "regular"}: a table's place in nested JSON.
@@ -337,6 +357,8 @@ Settings load_settings(const std::string& path) {
     throw ConfigError(path + ": collect.max_route_m must be >= collect.min_route_m");
   if (st.collect.noise.max_s < st.collect.noise.min_s)
     throw ConfigError(path + ": collect.noise.max_s must be >= collect.noise.min_s");
+  if (st.mujoco.noise.max_steps < st.mujoco.noise.min_steps)
+    throw ConfigError(path + ": mujoco.noise.max_steps must be >= mujoco.noise.min_steps");
   return st;
 }
 

@@ -11,6 +11,7 @@
 #include "control/pid.hpp"
 #include "expert/expert_settings.hpp"
 #include "methods/method_settings.hpp"
+#include "mujoco/mujoco_settings.hpp"
 #include "nn/model_settings.hpp"
 #include "sense/bev.hpp"
 #include "sense/sensor_shift.hpp"
@@ -40,6 +41,7 @@ struct TrainSettings {
   int epochs = 8;
   int batch_size = 64;
   double lr = 2e-4;
+  double weight_decay = 0;       // Adam's L2 penalty (seed 001 table 12: 0.03)
   std::string loss = "l1";       // l1 | l2
   double val_fraction = 0.1;     // of the episodes, held out for validation
   int lr_patience = 1;           // epochs without a better validation loss before a decay
@@ -101,6 +103,7 @@ struct Settings : WorldConfig {  // world, ego, bev
   KeyframeSettings keyframe;
   HdSettings hd;
   DaggerSettings dagger;
+  MujocoSettings mujoco;
 };
 
 Settings load_settings(const std::string& path);  // throws ConfigError

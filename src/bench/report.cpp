@@ -212,6 +212,15 @@ const std::vector<MetricSet>& metric_sets() {
         {"time_limit_rate", "timeout %", 100.0},
         {"inertia_rate", "inertia %", 100.0}},
        true},
+      {"return",
+       "MuJoCo-Image (eval --env): return per episode and the copycat R\u00b2 of a_t from "
+       "a_{t-1}, policy vs its expert's data (mean \u00b1 sd over seeds)",
+       {{"mean_return", "return", 1.0},
+        {"mean_length", "length", 1.0, 0},
+        {"copycat_policy_r2", "R\u00b2 policy", 1.0, 3},
+        {"copycat_expert_r2", "R\u00b2 expert", 1.0, 3}},
+       false,
+       false},
   };
   return sets;
 }
@@ -231,7 +240,8 @@ std::vector<MetricSet> parse_metric_sets(const std::string& spec) {
   while (std::getline(in, item, ',')) {
     any = true;
     if (item == "all") {
-      for (const auto& s : metric_sets()) add(s);
+      for (const auto& s : metric_sets())
+        if (s.in_all) add(s);
       continue;
     }
     auto it = std::find_if(metric_sets().begin(), metric_sets().end(),
@@ -296,7 +306,9 @@ RunResult load_result(const std::string& path) {
   RunResult r;
   r.path = path;
   r.agent = required_string(doc, "agent", path);
-  r.suite = required_string(doc, "suite", path);
+  // MuJoCo-Image runs (eval --env) name their env where driving runs name their suite.
+  r.mujoco = !doc.contains("suite") && doc.contains("env");
+  r.suite = required_string(doc, r.mujoco ? "env" : "suite", path);
   r.label = r.agent;
   if (auto it = doc.find("label"); it != doc.end() && !it->is_null()) {
     if (!it->is_string()) throw DataError(path + ": key 'label' must be a string");

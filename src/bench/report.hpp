@@ -20,7 +20,8 @@ struct RunResult {
   std::string path;   // the file it came from
   std::string agent;
   std::string label;  // `label`, or `agent` when the file has none
-  std::string suite;
+  std::string suite;  // the driving suite, or a MuJoCo-Image run's env
+  bool mujoco = false;  // an `eval --env` run (results.json has `env`, no `suite`)
   std::string town;             // `town`, "" when the file has none
   std::string sensor = "clean"; // `sensor` (eval.sensor), "clean" when the file has none
   // Every numeric (or null) entry of `summary`; null is std::nullopt (e.g. no start delay).
@@ -54,6 +55,7 @@ struct MetricSet {
   std::string title;  // the line printed above its table
   std::vector<Metric> metrics;
   bool by_condition = false;  // one table per failure condition (failure_conditions())
+  bool in_all = true;         // part of `all` (the driving sets; `return` is MuJoCo-Image's)
 };
 
 // A condition of the failure-mode tables: the runs on `town` with sensor `sensor`.
@@ -70,8 +72,8 @@ const std::vector<FailureCondition>& failure_conditions();
 // The known sets, in the order `all` prints them.
 const std::vector<MetricSet>& metric_sets();
 
-// Parses the --metrics value: `error`, `outcomes`, `stopgo`, `lights`, `failure`, `all`, or a
-// comma-separated list of them. Throws ConfigError naming the unknown value.
+// Parses the --metrics value: `error`, `outcomes`, `stopgo`, `lights`, `failure`, `return`
+// (MuJoCo-Image), `all` (the driving sets), or a comma-separated list of them. Throws ConfigError naming the unknown value.
 std::vector<MetricSet> parse_metric_sets(const std::string& spec);
 
 // Mean and sample standard deviation of one metric over the seeds of one (label, suite).

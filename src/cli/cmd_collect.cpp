@@ -6,6 +6,7 @@
 #include "collect/collect.hpp"
 #include "core/error.hpp"
 #include "mujoco/collect.hpp"
+#include "mujoco/env_spec.hpp"
 
 namespace cd::cli {
 
@@ -18,28 +19,32 @@ struct CollectArgs {
   bool noise = false;
   // MuJoCo-Image (--env)
   std::string env;
-  int size = 64, max_steps = 0, planner_samples = 0, planner_horizon = 0;
+  int size = 0, max_steps = 0, planner_samples = 0, planner_horizon = 0;
 };
 
-// collect --env NAME: the MuJoCo-Image domain; the driving options do not apply.
+// collect --env NAME: the MuJoCo-Image domain, with the [mujoco] settings of --config; the
+// driving options do not apply.
 void collect_mujoco(const CollectArgs& a) {
-  for (const auto& [given, flag] : {std::pair{!a.config.empty(), "--config"},
-                                    {!a.town.empty(), "--town"},
+  for (const auto& [given, flag] : {std::pair{!a.town.empty(), "--town"},
                                     {!a.traffic.empty(), "--traffic"},
                                     {!a.png.empty(), "--png"}}) {
     if (given) throw ConfigError(std::string(flag) + " is a driving option; it does not apply with --env");
   }
+  mj::env_spec(a.env);  // an unknown env: one line, before the config is read
+  const Settings s = settings_from(a.config);
+  const MujocoSettings& m = s.mujoco;
   mj::CollectOptions o;
   o.env = a.env;
   o.out = a.out;
-  if (a.episodes > 0) o.episodes = a.episodes;
-  if (a.workers > 0) o.workers = a.workers;
-  if (a.seed >= 0) o.seed = static_cast<uint64_t>(a.seed);
-  o.width = o.height = a.size;
-  o.max_steps = a.max_steps;
-  o.noise.enabled = a.noise;
-  o.planner.samples = a.planner_samples;
-  o.planner.horizon = a.planner_horizon;
+  o.episodes = a.episodes > 0 ? a.episodes : m.episodes.of(a.env);
+  o.workers = a.workers > 0 ? a.workers : m.workers;
+  o.seed = a.seed >= 0 ? static_cast<uint64_t>(a.seed) : m.seed;
+  o.width = o.height = a.size > 0 ? a.size : m.size;
+  o.max_steps = a.max_steps > 0 ? a.max_steps : m.max_steps;
+  o.noise = {a.noise || m.noise.enabled, m.noise.rate, m.noise.min_steps, m.noise.max_steps,
+             m.noise.sigma};
+  o.planner.samples = a.planner_samples > 0 ? a.planner_samples : m.planner_samples;
+  o.planner.horizon = a.planner_horizon > 0 ? a.planner_horizon : m.planner_horizon;
   const mj::CollectReport r = mj::collect(o);
   double mean = 0;
   for (double v : r.returns) mean += v / std::max<size_t>(1, r.returns.size());
@@ -77,7 +82,8 @@ void add_collect(CLI::App& app) {
   CLI::App* sub = app.add_subcommand(
       "collect", "record expert episodes to HDF5 (driving, or MuJoCo-Image with --env)");
   sub->add_option("--config,-c", args->config, "TOML config (default: built-in quickstart)");
-  sub->add_option("--episodes,-n", args->episodes, "number of episodes (collect.episodes)")
+  sub->add_option("--episodes,-n", args->episodes,
+                  "number of episodes (collect.episodes; with --env: mujoco.episodes.ENV)")
       ->check(CLI::PositiveNumber);
   sub->add_option("--workers,-j", args->workers, "worker processes (collect.workers)")
       ->check(CLI::PositiveNumber);
@@ -91,11 +97,12 @@ void add_collect(CLI::App& app) {
   CLI::Option* env = sub->add_option("--env", args->env,
                   "MuJoCo-Image environment (halfcheetah, hopper, ant, reacher, humanoid) "
                   "instead of driving; needs --out");
-  sub->add_option("--size", args->size, "with --env: frame width and height in pixels")
+  sub->add_option("--size", args->size, "with --env: frame width and height in pixels (mujoco.size)")
       ->check(CLI::Range(8, 1024))
       ->needs(env);
   sub->add_option("--max-steps", args->max_steps,
-                  "with --env: end episodes after this many steps (default: the env's limit)")
+                  "with --env: end episodes after this many steps (mujoco.max_steps; default: the env's "
+                  "limit)")
       ->check(CLI::PositiveNumber)
       ->needs(env);
   sub->add_option("--planner-samples", args->planner_samples,

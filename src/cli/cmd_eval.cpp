@@ -23,25 +23,28 @@ struct EvalArgs {
   int64_t seed = -1;
 };
 
-// eval --env NAME: the MuJoCo-Image domain; the driving options do not apply.
+// eval --env NAME: the MuJoCo-Image domain, with the [mujoco] settings of --config; the
+// driving options do not apply.
 void eval_mujoco(const EvalArgs& a) {
-  for (const auto& [given, flag] : {std::pair{!a.config.empty(), "--config"},
-                                    {!a.suite.empty(), "--suite"},
+  for (const auto& [given, flag] : {std::pair{!a.suite.empty(), "--suite"},
                                     {a.trials > 0, "--trials"},
                                     {!a.sensor.empty(), "--sensor"},
-                                    {!a.label.empty(), "--label"},
                                     {a.trace, "--trace"}}) {
     if (given) throw ConfigError(std::string(flag) + " is a driving option; it does not apply with --env");
   }
+  const Settings s = settings_from(a.config);
   mj::EvalOptions o;
   o.env = a.env;
   o.agent = a.agent;
+  o.label = a.label;
   o.checkpoint = a.checkpoint;
   o.out = a.out;
-  if (a.episodes > 0) o.episodes = a.episodes;
-  if (a.workers > 0) o.workers = a.workers;
+  o.episodes = a.episodes > 0 ? a.episodes : s.mujoco.eval_episodes;
+  o.workers = a.workers > 0 ? a.workers : s.mujoco.workers;
   if (a.seed >= 0) o.seed = static_cast<uint64_t>(a.seed);
-  o.max_steps = a.max_steps;
+  o.max_steps = a.max_steps > 0 ? a.max_steps : s.mujoco.max_steps;
+  o.planner.samples = s.mujoco.planner_samples;
+  o.planner.horizon = s.mujoco.planner_horizon;
   o.quiet = a.quiet;
   const mj::EvalReport r = mj::evaluate(o);
   std::printf("%s", mj::eval_table(r.results).c_str());
@@ -89,7 +92,7 @@ void add_eval(CLI::App& app) {
       "--env", a->env,
       "MuJoCo-Image environment (halfcheetah, hopper, ant, reacher, humanoid) instead of a "
       "driving suite; agents: expert, random or a family method with --checkpoint; needs --out");
-  sub->add_option("--episodes,-n", a->episodes, "with --env: seeded episodes (default 1)")
+  sub->add_option("--episodes,-n", a->episodes, "with --env: seeded episodes (mujoco.eval_episodes)")
       ->check(CLI::PositiveNumber)
       ->needs(env);
   sub->add_option("--seed", a->seed, "with --env: run seed of the episodes' initial states")

@@ -1,5 +1,6 @@
 // `causaldrive report RUN_DIR... [--metrics SETS] [--csv FILE] [--markdown FILE]`: comparison
 // tables over evaluation runs (see bench/report.hpp).
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -39,8 +40,9 @@ void add_report(CLI::App& app) {
                   "evaluation output folders holding results.json, or folders under which they "
                   "lie (searched recursively)");
   sub->add_option("--metrics,-m", args->metrics,
-                  "error | outcomes | stopgo | lights | failure | all, or a comma-separated "
-                  "list (default: all); failure: seed 001's failure-mode tables, one per "
+                  "error | outcomes | stopgo | lights | failure | return | all, or a "
+                  "comma-separated list (default: all, or return when every run is MuJoCo-Image); "
+                  "return: return and copycat R2 of MuJoCo-Image runs (eval --env); failure: seed 001's failure-mode tables, one per "
                   "condition (training town, new sensor, new town)")
       ->type_name("SETS");
   sub->add_option("--csv", args->csv, "also write a long-format CSV (label,suite,metric,mean,std,n)")
@@ -50,12 +52,16 @@ void add_report(CLI::App& app) {
   sub->callback([args] {
     // Validated here rather than by CLI11 so that every user error is one line and exit code 1.
     std::vector<MetricSet> sets = parse_metric_sets(args->metrics);
+    const bool default_sets = args->metrics == "all";
     if (args->run_dirs.empty())
       throw ConfigError("report: give at least one RUN_DIR (an output folder of `causaldrive "
                         "eval`, or a folder holding several)");
     std::vector<RunResult> runs;
     for (const std::string& file : find_result_files(args->run_dirs))
       runs.push_back(load_result(file));
+    // MuJoCo-Image runs only, no --metrics: their table.
+    if (default_sets && std::all_of(runs.begin(), runs.end(), [](const RunResult& r) { return r.mujoco; }))
+      sets = parse_metric_sets("return");
     ReportTable table = build_report(runs);
     std::string markdown = render_markdown(table, sets);
     if (!args->csv.empty()) write_output("--csv", args->csv, render_csv(table, sets));

@@ -6,6 +6,9 @@
 // the policy's otherwise; every visited state is recorded with the expert's action as its
 // label. The policy is then trained further (warm start, dagger.epochs epochs) on the expert
 // data plus every rollout so far.
+// On MuJoCo-Image data the rounds drive the data's env instead (episodes from dagger.seed, at
+// the data's frame size, with [mujoco]'s workers, step limit and planner); the planner expert
+// labels every visited state and acts until the policy's history holds real frames.
 //
 // Run folder:
 //   iter_00/ .. iter_NN/     each iteration's policy (a family run folder, resumable)
@@ -30,7 +33,11 @@
 #include "core/progress.hpp"
 #include "core/rng.hpp"
 #include "data/h5_episode.hpp"
+#include "data/mujoco_episode.hpp"
+#include "datasets/episode_set.hpp"
 #include "methods/policy_family.hpp"
+#include "mujoco/collect.hpp"
+#include "mujoco/frame_policy.hpp"
 #include "runs/checkpoint.hpp"
 #include "world/world.hpp"
 
@@ -92,6 +99,113 @@ class DaggerDriver : public Driver {
   Rng rng_{0};
 };
 
+// The MuJoCo-Image counterpart: the policy on rendered frames; the expert acts until the
+// policy's history holds real frames.
+class MujocoDaggerDriver : public mj::Driver {
+ public:
+  MujocoDaggerDriver(std::string policy_dir, const std::string& env, double beta)
+      : dir_(std::move(policy_dir)), beta_(beta) {
+    mj::Env probe(env);
+    low_ = probe.action_low();
+    high_ = probe.action_high();
+  }
+
+  void begin_episode(uint64_t episode_seed) override {
+    if (!policy_) policy_ = std::make_unique<mj::FramePolicy>(dir_, "dagger");
+    policy_->begin_episode();
+    previous_.assign(low_.size(), 0.0);
+    rng_ = Rng(derive_seed(episode_seed, kMixStream));
+  }
+
+  std::vector<double> drive(const mj::Frame& frame, const std::vector<double>& expert) override {
+    policy_->push(frame);
+    std::vector<double> executed = expert;
+    if (policy_->ready()) {
+      std::vector<double> policy = policy_->act(previous_, low_, high_);
+      if (!(rng_.uniform() < beta_)) executed = std::move(policy);
+    }
+    previous_ = executed;
+    return executed;
+  }
+
+  std::string describe() const override {
+    char b[96];
+    std::snprintf(b, sizeof b, "dagger beta %.4f, policy %s", beta_, dir_.c_str());
+    return b;
+  }
+
+ private:
+  std::string dir_;
+  double beta_;
+  std::vector<double> low_, high_, previous_;
+  std::unique_ptr<mj::FramePolicy> policy_;
+  Rng rng_{0};
+};
+
+// One iteration's closed-loop episodes, recorded into `out` (resumable): the frames labelled by
+// the expert and the episodes' outcomes.
+struct Rollouts {
+  long frames = 0;
+  std::map<std::string, int> outcomes;
+};
+
+Rollouts driving_rollouts(const Settings& settings, int i, const std::string& policy,
+                          double beta, const std::string& out, bool quiet) {
+  const DaggerSettings& d = settings.dagger;
+  Settings cs = settings;
+  cs.world.town = d.town;
+  cs.world.traffic = d.traffic;
+  cs.collect.seed = derive_seed(d.seed, static_cast<uint64_t>(i));
+  cs.collect.episodes = d.episodes;
+  cs.collect.out = out;
+  cs.collect.noise.enabled = false;
+  CollectOptions co;
+  co.quiet = quiet;
+  co.driver = [policy, settings, beta] {
+    return std::make_unique<DaggerDriver>(policy, settings, beta);
+  };
+  collect(cs, co);
+  Rollouts r;
+  for (const std::string& f : list_episode_files(out)) {
+    EpisodeMeta m = read_episode_meta(f);
+    r.frames += static_cast<long>(read_episode(f, nullptr).frames());
+    ++r.outcomes[m.outcome];
+  }
+  return r;
+}
+
+// MuJoCo-Image: episodes of the data's env from dagger.seed (never an eval's initial states),
+// at the data's frame size, with the [mujoco] settings' workers, step limit and planner.
+Rollouts mujoco_rollouts(const Settings& settings, const std::string& data_dir, int i,
+                         const std::string& policy, double beta, const std::string& out,
+                         bool quiet) {
+  const std::vector<std::string> files = list_episode_files(data_dir);
+  if (files.empty()) throw DataError(data_dir + " holds no episode files");
+  const MujocoEpisode first = read_mujoco_episode(files.front());
+  mj::CollectOptions o;
+  o.env = first.env;
+  o.out = out;
+  o.episodes = settings.dagger.episodes;
+  o.seed = derive_seed(settings.dagger.seed, static_cast<uint64_t>(i));
+  o.workers = settings.mujoco.workers;
+  o.width = first.width;
+  o.height = first.height;
+  o.max_steps = settings.mujoco.max_steps;
+  o.planner.samples = settings.mujoco.planner_samples;
+  o.planner.horizon = settings.mujoco.planner_horizon;
+  o.quiet = quiet;
+  const std::string env = first.env;
+  o.driver = [policy, env, beta] { return std::make_unique<MujocoDaggerDriver>(policy, env, beta); };
+  mj::collect(o);
+  Rollouts r;
+  for (const std::string& f : list_episode_files(out)) {
+    const MujocoEpisode m = read_mujoco_episode(f);
+    r.frames += static_cast<long>(m.frames());
+    ++r.outcomes[m.outcome];
+  }
+  return r;
+}
+
 json read_record(const std::string& path) {
   std::error_code ec;
   if (!fs::exists(path, ec)) return json();
@@ -136,36 +250,21 @@ TrainSummary train_dagger(const Settings& settings, const TrainRequest& req) {
   if (!req.quiet) log_line("dagger iteration 0: bc-oh on the expert data");
   TrainSummary sum = train_policy_family(settings, r, method, {{req.data_dir}, ""});
 
+  const bool mujoco = data_domain(req.data_dir) == kMujocoDomain;
   std::vector<std::string> dirs = {req.data_dir};
   long labels = 0;
   for (int i = 1; i <= d.iterations; ++i) {
     const double beta = dagger_beta(d, i);
-    Settings cs = settings;
-    cs.world.town = d.town;
-    cs.world.traffic = d.traffic;
-    cs.collect.seed = derive_seed(d.seed, static_cast<uint64_t>(i));
-    cs.collect.episodes = d.episodes;
-    cs.collect.out = rollout_dir(out, i);
-    cs.collect.noise.enabled = false;
     const std::string policy = iteration_dir(out, i - 1);
+    const std::string rollouts = rollout_dir(out, i);
     if (!req.quiet)
       log_line("dagger iteration " + std::to_string(i) + ": " + std::to_string(d.episodes) +
                " closed-loop episodes, expert with probability " + std::to_string(beta));
-    CollectOptions co;
-    co.quiet = req.quiet;
-    co.driver = [policy, settings, beta] {
-      return std::make_unique<DaggerDriver>(policy, settings, beta);
-    };
-    const CollectReport rollouts = collect(cs, co);
-    dirs.push_back(cs.collect.out);
-
-    long frames = 0;
-    std::map<std::string, int> outcomes;
-    for (const std::string& f : list_episode_files(cs.collect.out)) {
-      EpisodeMeta m = read_episode_meta(f);
-      frames += static_cast<long>(read_episode(f, nullptr).frames());
-      ++outcomes[m.outcome];
-    }
+    const Rollouts done =
+        mujoco ? mujoco_rollouts(settings, req.data_dir, i, policy, beta, rollouts, req.quiet)
+               : driving_rollouts(settings, i, policy, beta, rollouts, req.quiet);
+    dirs.push_back(rollouts);
+    const long frames = done.frames;
     labels += frames;
 
     Settings ts = settings;
@@ -175,14 +274,13 @@ TrainSummary train_dagger(const Settings& settings, const TrainRequest& req) {
 
     json it = {{"iteration", i},       {"beta", beta},
                {"episodes", d.episodes}, {"expert_labels", frames},
-               {"outcomes", outcomes}, {"rollouts", fs::path(cs.collect.out).filename().string()},
+               {"outcomes", done.outcomes}, {"rollouts", fs::path(rollouts).filename().string()},
                {"policy", fs::path(r.out_dir).filename().string()}};
     json& its = record["iterations"];
     if (static_cast<int>(its.size()) < i) its.push_back(it);
     record["expert_labels"] = labels;
     write_file_atomic(record_path, record.dump(2) + "\n");
     inject_crash("dagger", i, out, CrashScope::ProcessGroup);
-    (void)rollouts;
   }
 
   // The last iteration is the dagger policy: its run, copied to the top of the folder.

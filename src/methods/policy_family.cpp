@@ -222,6 +222,7 @@ TrainSummary train_policy_family(const Settings& settings_in, const TrainRequest
   nets.to(dev.device);
   torch::optim::AdamOptions adam =
       method.adam ? method.adam(s) : torch::optim::AdamOptions(s.train.lr);
+  adam.weight_decay(s.train.weight_decay);
   torch::optim::Adam opt(nets.parameters(), adam);
   if (ck.epochs_done > 0) {
     restore(nets, opt, out, dev.device);

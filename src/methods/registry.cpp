@@ -131,14 +131,11 @@ TrainSummary train_method(const Settings& settings, const TrainRequest& request)
     // a missing or empty folder: the method reports it in its own order
   }
   if (domain != kMujocoDomain) return m.train(settings, request);
-  if (request.method == "dagger")
-    throw ConfigError("dagger on MuJoCo-Image data is not supported yet (it needs rollouts in "
-                      "the env labelled by the planner); train bc-oh, residual, ... instead");
   const std::vector<std::string>& family = policy_runner_methods();
   if (std::find(family.begin(), family.end(), request.method) == family.end())
     throw ConfigError("method '" + request.method + "' trains on driving data only; " +
                       request.data_dir + " is MuJoCo-Image data (bc-so, bc-oh, residual, fca, "
-                      "keyframe, hd train on it)");
+                      "keyframe, hd, dagger train on it)");
   Settings s = settings;
   s.model.speed_loss_weight = 0;
   s.model.speed_input = false;

@@ -38,6 +38,8 @@ void validate(const CollectOptions& o) {
   const NoiseOptions& n = o.noise;
   if (n.rate < 0 || n.rate > 1 || n.min_steps < 1 || n.max_steps < n.min_steps || n.sigma < 0)
     throw ConfigError("collect: noise settings out of range");
+  if (o.driver && n.enabled)
+    throw ConfigError("collect: noise injection and a driver exclude each other");
 }
 
 }  // namespace
@@ -71,13 +73,18 @@ MujocoEpisode record_episode(const CollectOptions& o, int index) {
                 o.noise.enabled ? "on" : "off", o.noise.rate, o.noise.min_steps,
                 o.noise.max_steps, o.noise.sigma);
   e.extra["noise_injection"] = noise_line;
+  std::unique_ptr<Driver> driver = o.driver ? o.driver() : nullptr;
+  if (driver) {
+    driver->begin_episode(seed);
+    e.extra["driver"] = driver->describe();
+  }
 
   Frame frame = env.reset(seed);
   int noise_left = 0;
   for (int t = 0; t < limit; ++t) {
     const std::vector<double> state = env.state();
     const std::vector<double> label = expert.act(state);
-    std::vector<double> executed = label;
+    std::vector<double> executed = driver ? driver->drive(frame, label) : label;
     if (o.noise.enabled) {
       if (noise_left == 0 && noise_rng.uniform() < o.noise.rate) {
         noise_left = o.noise.min_steps +
@@ -95,7 +102,7 @@ MujocoEpisode record_episode(const CollectOptions& o, int index) {
         e.noise.push_back(0);
       }
     } else {
-      e.noise.push_back(0);
+      e.noise.push_back(executed == label ? 0 : 1);
     }
     e.obs.insert(e.obs.end(), frame.begin(), frame.end());
     for (double v : state) e.state.push_back(static_cast<float>(v));

@@ -2,10 +2,13 @@
 // MuJoCo-Image data: expert episodes rendered to frames, one HDF5 file each (SPEC section 8),
 // in parallel worker processes, resumable (a rerun keeps the files already written).
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "data/mujoco_episode.hpp"
+#include "mujoco/env.hpp"
 #include "mujoco/expert.hpp"
 
 namespace cd::mj {
@@ -19,6 +22,17 @@ struct NoiseOptions {
   double sigma = 0.3;         // noise, fraction of the half ctrlrange
 };
 
+// What executes the actions of a recorded episode in place of the expert (dagger's closed-loop
+// rollouts). The expert's label is recorded at every visited state whatever is executed.
+class Driver {
+ public:
+  virtual ~Driver() = default;
+  virtual void begin_episode(uint64_t episode_seed) = 0;
+  // The action executed at this step, given the step's frame and the expert's label for it.
+  virtual std::vector<double> drive(const Frame& frame, const std::vector<double>& label) = 0;
+  virtual std::string describe() const = 0;  // one line, recorded in the file (`driver`)
+};
+
 struct CollectOptions {
   std::string env;
   std::string out;
@@ -29,6 +43,8 @@ struct CollectOptions {
   int max_steps = 0;  // > 0: episodes end (truncated) after this many steps, below the env limit
   NoiseOptions noise;
   PlannerOptions planner;  // the expert; its seed is derived per episode
+  // Made once per episode (in its worker) when set; noise injection must then be off.
+  std::function<std::unique_ptr<Driver>()> driver;
   bool quiet = false;
 };
 

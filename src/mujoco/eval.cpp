@@ -20,6 +20,7 @@
 #include "data/mujoco_episode.hpp"
 #include "datasets/episode_set.hpp"
 #include "inference/policy_runner.hpp"
+#include "mujoco/frame_policy.hpp"
 #include "mujoco/env.hpp"
 #include "runs/checkpoint.hpp"
 
@@ -68,7 +69,7 @@ void validate(const EvalOptions& o, Checkpoint* ck) {
   }
   if (!is_policy(o.agent))
     throw ConfigError("unknown agent '" + o.agent + "' for eval --env (expert, random, bc-so, "
-                      "bc-oh, residual, fca, keyframe, hd)");
+                      "bc-oh, residual, fca, keyframe, hd, dagger)");
   if (o.checkpoint.empty())
     throw ConfigError("agent '" + o.agent + "' needs --checkpoint DIR (the output of "
                       "`causaldrive train --method " + o.agent + "` on MuJoCo-Image data)");
@@ -89,13 +90,12 @@ void validate(const EvalOptions& o, Checkpoint* ck) {
 // One episode; its record (return, length, outcome, the actions the agent chose).
 json run_episode(const EvalOptions& o, int index) {
   const uint64_t seed = episode_seed(derive_seed(o.seed, kEvalStream), index);
-  std::unique_ptr<PolicyRunner> policy;
+  std::unique_ptr<FramePolicy> policy;
   EnvOptions env_options;
   if (is_policy(o.agent)) {
-    set_torch_threads(1);
-    policy = std::make_unique<PolicyRunner>(o.checkpoint, o.agent);
-    env_options.width = policy->checkpoint().input.width;
-    env_options.height = policy->checkpoint().input.height;
+    policy = std::make_unique<FramePolicy>(o.checkpoint, o.agent);
+    env_options.width = policy->width();
+    env_options.height = policy->height();
   }
   Env env(o.env, env_options);
   const int A = env.action_dim();
@@ -109,24 +109,19 @@ json run_episode(const EvalOptions& o, int index) {
   }
   Rng rng(derive_seed(seed, 3));
 
-  std::vector<Frame> frames;  // every frame of the episode (policy only)
   Frame first = env.reset(seed);
-  const int K = policy ? policy->history() : 1, stride = policy ? policy->stride() : 1;
-  const int prefill = policy ? (K - 1) * stride : 0;
-  if (policy) frames.push_back(std::move(first));
-  std::vector<const uint8_t*> history(static_cast<size_t>(K));
+  if (policy) policy->push(std::move(first));
   std::vector<double> action(static_cast<size_t>(A), 0.0);
-  std::vector<float> previous(static_cast<size_t>(A), 0.0f), chosen;
+  std::vector<float> chosen;
   double ret = 0;
   int steps = 0;
   std::string outcome = "truncated";
   for (int t = 0; t < limit; ++t) {
-    if (t >= prefill) {
+    // A policy acts once its history holds real frames; until then the zero action (prefill).
+    const bool acts = !policy || policy->ready();
+    if (acts) {
       if (policy) {
-        for (int k = 0; k < K; ++k) history[k] = frames[t - (K - 1 - k) * stride].data();
-        policy->run(history.data(), 0.0, 0, previous.data());
-        const std::vector<float>& a = policy->last_action();
-        for (int j = 0; j < A; ++j) action[j] = std::clamp<double>(a[j], low[j], high[j]);
+        action = policy->act(action, low, high);
       } else if (expert) {
         action = expert->act(env.state());
       } else {
@@ -135,14 +130,13 @@ json run_episode(const EvalOptions& o, int index) {
       for (double v : action) chosen.push_back(static_cast<float>(v));
     }
     const StepResult r = env.step(action);
-    for (int j = 0; j < A; ++j) previous[j] = static_cast<float>(action[j]);
     ret += r.reward;
     ++steps;
     if (r.terminated) {
       outcome = "terminated";
       break;
     }
-    if (policy) frames.push_back(env.render());
+    if (policy) policy->push(env.render());
   }
   json actions = json::array();
   for (size_t i = 0; i < chosen.size(); i += A)
@@ -151,11 +145,18 @@ json run_episode(const EvalOptions& o, int index) {
           {"length", steps}, {"outcome", outcome}, {"actions", actions}};
 }
 
-// The expert's labels of a training data folder, one T x A block per episode.
-std::vector<std::vector<float>> data_actions(const std::string& dir) {
+// The expert's labels of a checkpoint's training data, one T x A block per episode: its data
+// folder, or several joined by " + " (dagger's aggregate: the expert data and its rollouts).
+std::vector<std::vector<float>> data_actions(const std::string& dirs) {
   std::vector<std::vector<float>> out;
-  for (const std::string& path : list_episode_files(dir))
-    out.push_back(read_mujoco_episode(path).action);
+  size_t start = 0;
+  while (start <= dirs.size()) {
+    size_t end = dirs.find(" + ", start);
+    if (end == std::string::npos) end = dirs.size();
+    for (const std::string& path : list_episode_files(dirs.substr(start, end - start)))
+      out.push_back(read_mujoco_episode(path).action);
+    start = end + 3;
+  }
   return out;
 }
 
@@ -238,8 +239,12 @@ EvalReport evaluate(const EvalOptions& o) {
   if (ec) throw IoError("cannot create output folder " + ep_dir + ": " + ec.message());
   remove_stale_temporaries(o.out);
   remove_stale_temporaries(ep_dir);
-  const json run = {{"agent", o.agent},   {"env", o.env},          {"checkpoint", o.checkpoint},
-                    {"seed", o.seed},     {"max_steps", o.max_steps}};
+  const json run = {{"agent", o.agent},
+                    {"label", o.label.empty() ? o.agent : o.label},
+                    {"env", o.env},
+                    {"checkpoint", o.checkpoint},
+                    {"seed", o.seed},
+                    {"max_steps", o.max_steps}};
   claim_eval_folder(o.out, run, {"agent", "env", "checkpoint", "seed", "max_steps"});
 
   std::vector<json> records(o.episodes);
@@ -324,7 +329,9 @@ EvalReport evaluate(const EvalOptions& o) {
   report.results["summary"] = {{"episodes", records.size()},
                                {"mean_return", mean},
                                {"std_return", sd},
-                               {"mean_length", sum_len / n}};
+                               {"mean_length", sum_len / n},
+                               {"copycat_policy_r2", copycat["policy_r2"]},
+                               {"copycat_expert_r2", copycat["expert_data_r2"]}};
   report.results["copycat"] = copycat;
   write_file_atomic(o.out + "/results.json", report.results.dump(2) + "\n");
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

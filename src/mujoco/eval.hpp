@@ -39,6 +39,7 @@ inline constexpr uint64_t kEvalStream = 0xe7a1;
 struct EvalOptions {
   std::string env;
   std::string agent;       // expert | random | a family method
+  std::string label;       // row name in report's tables ("": the agent)
   std::string checkpoint;  // the family method's run folder
   std::string out;
   int episodes = 1;

@@ -8,6 +8,10 @@ namespace cd {
 // The network of the behaviour-cloning methods (bc-so, bc-oh) and what it sees.
 struct ModelSettings {
   std::string backbone = "small";  // small (CPU-sized CNN) | resnet34 (the seeds', GPU)
+  // What reads the backbone's feature: "cilrs" (speed input MLP, fusion layer and one MLP branch
+  // per command: seed 001's driving model, fig. 5) or "linear" (one linear layer from the feature
+  // to the action: seed 001's MuJoCo model, fig. 10; no command branches, no speed input).
+  std::string head = "cilrs";
   int history = 4;                 // frames stacked by bc-oh (bc-so: 1)
   int history_stride = 2;          // simulation steps between stacked frames
   std::string action_head = "throttle_brake";  // throttle_brake | target_speed

@@ -15,6 +15,7 @@ PolicyNetOptions policy_net_options(const ModelSettings& m, int in_channels, int
   o.height = height;
   o.width = width;
   o.backbone = m.backbone;
+  o.head = m.head;
   o.action_head = m.action_head;
   o.features = m.features;
   o.dropout = m.dropout;
@@ -154,12 +155,18 @@ PolicyNetImpl::PolicyNetImpl(const PolicyNetOptions& o) : options_(o) {
     throw ConfigError("unknown backbone '" + o.backbone + "' (known: small, resnet34)");
   }
   speed_head = mlp({F, F, F}, 1, 0.0);
+  register_module("speed_head", speed_head);
+  if (o.head == "linear") {
+    linear_head = nn::Linear(F + o.extra_features, A);
+    register_module("linear_head", linear_head);
+    return;
+  }
+  if (o.head != "cilrs") throw ConfigError("unknown policy head '" + o.head + "' (known: cilrs, linear)");
   measurement = nn::Sequential(nn::Linear(1, kMeasurementWidth), nn::ReLU(),
                                nn::Linear(kMeasurementWidth, kMeasurementWidth), nn::ReLU());
   fusion = nn::Sequential(nn::Linear(F + kMeasurementWidth + o.extra_features, F), nn::ReLU());
   branches = nn::ModuleList();
   for (int b = 0; b < kBranches; ++b) branches->push_back(mlp({F, F, F}, A, o.dropout));
-  register_module("speed_head", speed_head);
   register_module("measurement", measurement);
   register_module("fusion", fusion);
   register_module("branches", branches);
@@ -185,20 +192,23 @@ PolicyOutput PolicyNetImpl::forward(const torch::Tensor& image, const torch::Ten
   out.feature_map = map;
   out.feature = f;
   if (with_speed) out.speed = speed_head->forward(f);
-  std::vector<torch::Tensor> joined = {f, measurement->forward(speed)};
+  std::vector<torch::Tensor> joined = {f};
+  if (!linear_head) joined.push_back(measurement->forward(speed));
   if (options_.extra_features > 0) {
     if (!extra.defined() || extra.size(1) != options_.extra_features)
       throw Error("policy network: expected an extra feature of width " +
                   std::to_string(options_.extra_features));
     joined.push_back(extra);
   }
-  torch::Tensor j = fusion->forward(torch::cat(joined, 1));
+  torch::Tensor j = linear_head ? (joined.size() == 1 ? f : torch::cat(joined, 1))
+                                : fusion->forward(torch::cat(joined, 1));
   out.embedding = j;
   out.action = act(j, command);
   return out;
 }
 
 torch::Tensor PolicyNetImpl::act(const torch::Tensor& j, const torch::Tensor& command) {
+  if (linear_head) return squash(linear_head->forward(j));
   const int64_t B = j.size(0);
   if (B == 1 && !is_training()) {
     // Closed loop: run only the commanded branch.

@@ -6,6 +6,9 @@
 //   speed input (zeros in the POMDP setting) -> 2-layer MLP -> m
 //   [f, m] -> fusion layer -> j
 //   j -> one of 4 branches chosen by the command (follow, left, right, straight) -> action
+// With head "linear" (seed 001's MuJoCo model, fig. 10): [f, extra] -> one linear layer ->
+// action; no speed input, fusion layer or branches (the speed head stays, unused when its
+// loss weight is 0); the embedding is [f, extra].
 //
 // Action heads: throttle_brake -> 2 sigmoid outputs in [0,1]; target_speed -> 1 softplus
 // output in m/s (never negative, and unlike ReLU it keeps a gradient at a standstill).
@@ -26,6 +29,7 @@ struct PolicyNetOptions {
   int in_channels = 8;  // K * C
   int height = 64, width = 64;
   std::string backbone = "small";              // small | resnet34
+  std::string head = "cilrs";                  // cilrs | linear (ModelSettings::head)
   std::string action_head = "throttle_brake";  // throttle_brake | target_speed
   int features = 256;
   double dropout = 0.2;
@@ -49,7 +53,7 @@ struct PolicyOutput {
   torch::Tensor action;     // B x action_dim
   torch::Tensor speed;      // B x 1, predicted ego speed (m/s); undefined when not asked for
   torch::Tensor feature;    // B x features: the backbone's output f
-  torch::Tensor embedding;  // B x features: the fusion output j the branches read
+  torch::Tensor embedding;  // B x features: the fusion output j the branches read ("linear": [f, extra])
   // B x C x h x w: the backbone's last convolutional feature map, the one `feature` is
   // computed from (what Grad-CAM weighs; diagnostics/attention).
   torch::Tensor feature_map;
@@ -120,6 +124,7 @@ struct PolicyNetImpl : torch::nn::Module {
   ResNet34Backbone resnet{nullptr};
   torch::nn::Sequential speed_head{nullptr}, measurement{nullptr}, fusion{nullptr};
   torch::nn::ModuleList branches{nullptr};
+  torch::nn::Linear linear_head{nullptr};  // head "linear" only
 
  private:
   torch::Tensor squash(const torch::Tensor& raw) const;  // the head's output nonlinearity

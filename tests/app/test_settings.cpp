@@ -249,5 +249,40 @@ TEST(ConfigErrors, InconsistentRangesAreRejected) {
   EXPECT_TRUE(has(msg, "max_s")) << msg;
 }
 
+// [mujoco]: per-env episode counts, noise windows, and the one-line errors of its keys.
+TEST(ConfigLoad, MujocoTableReadsPerEnvCounts) {
+  TempDir dir("cdtest-config");
+  const std::string path = dir / "mj.toml";
+  test::write_text(path,
+                   "[mujoco]\nsize = 48\neval_episodes = 3\n"
+                   "[mujoco.episodes]\nant = 7\nhumanoid = 200\n"
+                   "[mujoco.noise]\nenabled = true\nsigma = 0.1\n"
+                   "[model]\nhead = \"linear\"\n[train]\nweight_decay = 0.03\n");
+  const Settings s = load_settings(path);
+  EXPECT_EQ(s.mujoco.size, 48);
+  EXPECT_EQ(s.mujoco.eval_episodes, 3);
+  EXPECT_EQ(s.mujoco.episodes.of("ant"), 7);
+  EXPECT_EQ(s.mujoco.episodes.of("humanoid"), 200);
+  EXPECT_EQ(s.mujoco.episodes.of("reacher"), Settings{}.mujoco.episodes.reacher);
+  EXPECT_TRUE(s.mujoco.noise.enabled);
+  EXPECT_EQ(s.mujoco.noise.sigma, 0.1);
+  EXPECT_EQ(s.model.head, "linear");
+  EXPECT_EQ(s.train.weight_decay, 0.03);
+  EXPECT_THROW(s.mujoco.episodes.of("walker"), ConfigError);
+  // The record's JSON reads back to the same settings.
+  EXPECT_EQ(settings_to_json(settings_from_json(settings_to_json(s), "record")), settings_to_json(s));
+}
+
+TEST(ConfigErrors, MujocoKeysAreChecked) {
+  std::string msg = config_error("[mujoco.episodes]\nwalker = 3\n");
+  EXPECT_TRUE(has(msg, "walker")) << msg;
+  msg = config_error("[mujoco.episodes]\nant = 0\n");
+  EXPECT_TRUE(has(msg, "mujoco.episodes.ant")) << msg;
+  msg = config_error("[mujoco.noise]\nmin_steps = 9\nmax_steps = 3\n");
+  EXPECT_TRUE(has(msg, "mujoco.noise.max_steps")) << msg;
+  msg = config_error("[model]\nhead = \"mlp\"\n");
+  EXPECT_TRUE(has(msg, "model.head")) << msg;
+}
+
 }  // namespace
 }  // namespace cd

@@ -57,6 +57,46 @@ TEST(PolicyNet, ShapesAndRangesOfBothHeads) {
   EXPECT_GE(s.action.min().item<float>(), 0.0f) << "target speed is never negative";
 }
 
+// Seed 001's MuJoCo model (fig. 10): the backbone's feature, joined with an extra feature, read
+// by one linear layer; no speed input, fusion or branches. Checked against tanh(W [f, e] + b)
+// computed from the layer's own parameters.
+TEST(PolicyNet, LinearHeadIsOneLayerOnTheFeature) {
+  torch::manual_seed(2);
+  PolicyNetOptions o;
+  o.in_channels = 6;
+  o.height = o.width = 32;
+  o.features = 20;
+  o.head = "linear";
+  o.action_dim = 3;
+  o.output = "tanh";
+  o.extra_features = 4;
+  PolicyNet net(o);
+  net->eval();
+  EXPECT_FALSE(net->measurement) << "no speed input";
+  EXPECT_FALSE(net->fusion);
+  EXPECT_FALSE(net->branches);
+  ASSERT_TRUE(net->linear_head);
+  torch::Tensor x = torch::rand({5, 6, 32, 32}), e = torch::randn({5, 4});
+  torch::Tensor speed = torch::randn({5, 1}), cmd = torch::tensor({0, 1, 2, 3, 0}, torch::kInt64);
+  PolicyOutput out = net->forward(x, speed, cmd, false, e);
+  ASSERT_EQ(out.action.sizes(), (std::vector<int64_t>{5, 3}));
+  torch::Tensor joined = torch::cat({out.feature, e}, 1);
+  EXPECT_TRUE(torch::equal(out.embedding, joined));
+  torch::Tensor by_hand =
+      torch::tanh(torch::matmul(joined, net->linear_head->weight.t()) + net->linear_head->bias);
+  EXPECT_TRUE(torch::allclose(out.action, by_hand, 1e-5, 1e-6));
+  // The command and the speed are not read.
+  PolicyOutput other = net->forward(x, torch::zeros({5, 1}), torch::zeros({5}, torch::kInt64), false, e);
+  EXPECT_TRUE(torch::equal(out.action, other.action));
+  // Parameters: the backbone, the (unused) speed head and the one layer.
+  for (const auto& p : net->named_parameters())
+    EXPECT_TRUE(p.key().rfind("backbone.", 0) == 0 || p.key().rfind("speed_head.", 0) == 0 ||
+                p.key().rfind("linear_head.", 0) == 0)
+        << p.key();
+  o.head = "mlp";
+  EXPECT_THROW(PolicyNet{o}, ConfigError);
+}
+
 TEST(PolicyNet, SaveLoadRoundTripGivesIdenticalOutputs) {
   torch::manual_seed(2);
   PolicyNetOptions o;

@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# Reproduces seed 001's MuJoCo-Image experiments (appendix C: table 13 and the main paper's
+# MuJoCo comparison) with configs/mujoco_paper.toml: expert data per env, the seven methods x
+# env x seed, closed-loop returns, and one table with the expert and a random policy for scale.
+#
+#   scripts/mujoco_paper.sh data     # expert episodes per env (the planner; [mujoco.episodes])
+#   scripts/mujoco_paper.sh train    # bc-so bc-oh residual fca keyframe hd dagger, every env x seed
+#   scripts/mujoco_paper.sh eval     # every trained run, the expert and a random policy
+#   scripts/mujoco_paper.sh table    # return and copycat R2, mean +- sd over seeds -> table.md/.csv
+#   scripts/mujoco_paper.sh all      # the four in order
+#
+# Every step resumes: collect, train and eval keep what their output folders already hold, so
+# an interrupted run is continued by running the same command again. Environment knobs:
+#   CD       the causaldrive binary    (default: build/causaldrive)
+#   OUT      the experiment folder      (default: runs/mujoco_paper)
+#   ENVS     environments               (default: "halfcheetah reacher hopper ant humanoid")
+#   SEEDS    training seeds             (default: "0 1 2")
+#   METHODS  methods                    (default: "bc-so bc-oh residual fca keyframe hd dagger")
+#   CONFIG   the experiment config      (default: configs/mujoco_paper.toml)
+# The expert is the costly part: ~0.04 s per step (halfcheetah) to ~0.6 s (humanoid) per core,
+# for data, dagger's rounds and the expert row alike.
+set -euo pipefail
+
+cd "$(dirname "$0")/.."
+CD=${CD:-build/causaldrive}
+OUT=${OUT:-runs/mujoco_paper}
+ENVS=${ENVS:-"halfcheetah reacher hopper ant humanoid"}
+SEEDS=${SEEDS:-"0 1 2"}
+METHODS=${METHODS:-"bc-so bc-oh residual fca keyframe hd dagger"}
+CONFIG=${CONFIG:-configs/mujoco_paper.toml}
+[[ -x $CD ]] || { echo "error: $CD not found; run 'make build' first (or set CD)" >&2; exit 1; }
+
+data() {
+  for env in $ENVS; do
+    "$CD" collect --env "$env" --config "$CONFIG" --out "$OUT/data/$env"
+  done
+}
+
+train() {
+  for env in $ENVS; do
+    for s in $SEEDS; do
+      for m in $METHODS; do
+        "$CD" train --config "$CONFIG" --method "$m" --data "$OUT/data/$env" --seed "$s" \
+          --out "$OUT/train/$env/seed$s/$m"
+      done
+    done
+  done
+}
+
+evaluate() {
+  for env in $ENVS; do
+    for agent in expert random; do
+      "$CD" eval --env "$env" --config "$CONFIG" --agent "$agent" --quiet \
+        --out "$OUT/eval/$env/$agent"
+    done
+    for s in $SEEDS; do
+      for m in $METHODS; do
+        local run=$OUT/train/$env/seed$s/$m
+        [[ -f $run/checkpoint.json ]] || { echo "skipping $run: not trained" >&2; continue; }
+        "$CD" eval --env "$env" --config "$CONFIG" --agent "$m" --checkpoint "$run" --quiet \
+          --out "$OUT/eval/$env/seed$s/$m"
+      done
+    done
+  done
+}
+
+table() {
+  "$CD" report "$OUT/eval" --metrics return --markdown "$OUT/table.md" --csv "$OUT/table.csv"
+}
+
+case ${1:-} in
+  data) data ;;
+  train) train ;;
+  eval) evaluate ;;
+  table) table ;;
+  all) data; train; evaluate; table ;;
+  *)
+    sed -n '2,21p' "$0" | sed 's/^# \{0,1\}//'
+    exit 2
+    ;;
+esac
