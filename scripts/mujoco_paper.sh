@@ -8,6 +8,8 @@
 #   scripts/mujoco_paper.sh eval     # every trained run, the expert and a random policy
 #   scripts/mujoco_paper.sh table    # return and copycat R2, mean +- sd over seeds -> table.md/.csv
 #   scripts/mujoco_paper.sh all      # the four in order
+#   scripts/mujoco_paper.sh lr-sweep # table 12's learning rate: bc-oh at 0.1 ... 1e-4 on the first
+#                                    # env's data, validation loss on its held-out episodes
 #
 # Every step resumes: collect, train and eval keep what their output folders already hold, so
 # an interrupted run is continued by running the same command again. Environment knobs:
@@ -17,6 +19,7 @@
 #   SEEDS    training seeds             (default: "0 1 2")
 #   METHODS  methods                    (default: "bc-so bc-oh residual fca keyframe hd dagger")
 #   CONFIG   the experiment config      (default: configs/mujoco_paper.toml)
+#   SWEEP_EPOCHS  epochs per rate in lr-sweep (default: 5)
 # The expert is the costly part: ~0.04 s per step (halfcheetah) to ~0.6 s (humanoid) per core,
 # for data, dagger's rounds and the expert row alike.
 set -euo pipefail
@@ -64,6 +67,27 @@ evaluate() {
   done
 }
 
+lr_sweep() {
+  local env=${ENVS%% *}
+  mkdir -p "$OUT/configs"
+  for lr in 0.1 0.01 0.001 0.0001; do
+    local cfg=$OUT/configs/lr-$lr.toml
+    sed "s/^lr = .*/lr = $lr/" "$CONFIG" > "$cfg.tmp" && mv "$cfg.tmp" "$cfg"
+    "$CD" train --config "$cfg" --method bc-oh --data "$OUT/data/$env" --epochs "${SWEEP_EPOCHS:-5}" \
+      --out "$OUT/lr_sweep/$env/lr-$lr"
+  done
+  python3 - "$OUT/lr_sweep/$env" <<'PY' | tee "$OUT/lr_sweep/$env/sweep.md"
+import glob, json, os, sys
+print("| lr | best validation L2 | at epoch | last train L2 |")
+print("|---|---|---|---|")
+runs = sorted(glob.glob(os.path.join(sys.argv[1], "lr-*")), key=lambda d: -float(d.split("lr-")[-1]))
+for d in runs:
+    ck = json.load(open(os.path.join(d, "checkpoint.json")))
+    print(f"| {d.split('lr-')[-1]} | {ck['best_loss']:.4f} | {ck['best_epoch']} | "
+          f"{ck['metrics'][-1]['train_loss']:.4f} |")
+PY
+}
+
 table() {
   "$CD" report "$OUT/eval" --metrics return --markdown "$OUT/table.md" --csv "$OUT/table.csv"
 }
@@ -74,8 +98,9 @@ case ${1:-} in
   eval) evaluate ;;
   table) table ;;
   all) data; train; evaluate; table ;;
+  lr-sweep) lr_sweep ;;
   *)
-    sed -n '2,21p' "$0" | sed 's/^# \{0,1\}//'
+    sed -n '2,24p' "$0" | sed 's/^# \{0,1\}//'
     exit 2
     ;;
 esac

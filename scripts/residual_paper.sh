@@ -12,6 +12,8 @@
 #   scripts/residual_paper.sh table11   # two-stream bc-oh / keyframe vs one-stream, town-a dense
 #   scripts/residual_paper.sh branches  # residual with 1, 2 and 4 memory branches, town-a dense
 #   scripts/residual_paper.sh probe     # copycat probe of every history method (JSON per run)
+#   scripts/residual_paper.sh families  # seed 000's cim trained on the same data, next to
+#                                       # bc-oh, keyframe and residual (failure modes, A and B)
 #   scripts/residual_paper.sh all       # everything above in order
 #
 # Every step resumes: collect, train and eval skip what their output folders already hold, so
@@ -123,13 +125,22 @@ case ${1:-} in
   branches) eval_agents branches outcomes clean town-a-dense residual residual-b2=residual \
               residual-b4=residual ;;
   probe) probe_all ;;
+  families)
+    for s in $SEEDS; do
+      "$CD" train --config configs/cim_paper.toml --method cim --data "$DATA" --seed "$s" \
+        --out "$OUT/train/seed$s/cim"
+    done
+    eval_agents families failure clean "$A $B" bc-oh keyframe residual cim
+    ;;
   all)
     "$0" train
     "$0" train-ablations
-    for step in table7 table8 table9 stopgo table10 table11 branches probe; do "$0" "$step"; done
+    for step in table7 table8 table9 stopgo table10 table11 branches probe families; do
+      "$0" "$step"
+    done
     ;;
   *)
-    sed -n '2,24p' "$0" | sed 's/^# \{0,1\}//'
+    sed -n '2,26p' "$0" | sed 's/^# \{0,1\}//'
     exit 2
     ;;
 esac

@@ -1,3 +1,4 @@
+#include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <functional>
@@ -14,6 +15,7 @@
 #include "core/rng.hpp"
 #include "methods/method.hpp"
 #include "mujoco/env.hpp"
+#include "mujoco/eval.hpp"
 #include "mujoco/expert.hpp"
 #include "world/world.hpp"
 
@@ -290,8 +292,11 @@ void bench_expert(const std::string& env_name, const mj::PlannerOptions& options
   int done = 0;
   bool terminated = false;
   const auto t0 = Clock::now();
+  std::vector<float> actions;  // the copycat measure of eval --env, for the expert's own actions
   for (; done < limit && !terminated; ++done) {
-    const mj::StepResult r = env.step(expert.act(env.state()));
+    const std::vector<double> a = expert.act(env.state());
+    actions.insert(actions.end(), a.begin(), a.end());
+    const mj::StepResult r = env.step(a);
     ret += r.reward;
     terminated = r.terminated;
     if (!json && (done + 1) % 100 == 0) {
@@ -299,6 +304,7 @@ void bench_expert(const std::string& env_name, const mj::PlannerOptions& options
     }
   }
   const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  const double r2 = mj::lag1_r2({actions}, env.action_dim());
   if (json) {
     nlohmann::json j = {{"env", env_name},
                         {"expert", expert.describe()},
@@ -308,13 +314,15 @@ void bench_expert(const std::string& env_name, const mj::PlannerOptions& options
                         {"terminated", terminated},
                         {"seconds", seconds},
                         {"s_per_step", seconds / std::max(1, done)},
-                        {"simulated_steps", expert.simulated_steps()}};
+                        {"simulated_steps", expert.simulated_steps()},
+                        {"action_lag1_r2", std::isfinite(r2) ? nlohmann::json(r2) : nlohmann::json()}};
     std::printf("%s\n", j.dump().c_str());
   } else {
-    std::printf("%s, %s, seed %llu: return %.1f over %d steps%s, %.3f s/step (%.0f s)\n",
+    std::printf("%s, %s, seed %llu: return %.1f over %d steps%s, %.3f s/step (%.0f s), "
+                "action lag-1 R2 %.3f\n",
                 env_name.c_str(), expert.describe().c_str(),
                 static_cast<unsigned long long>(seed), ret, done,
-                terminated ? " (terminated)" : "", seconds / std::max(1, done), seconds);
+                terminated ? " (terminated)" : "", seconds / std::max(1, done), seconds, r2);
   }
 }
 
