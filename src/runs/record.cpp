@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "app/settings.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 
@@ -75,7 +76,13 @@ void refuse_other_run(const RunIdentity& stored, const RunIdentity& now, const s
   if (stored.method != now.method)
     throw ConfigError(dir + " holds a run of method '" + stored.method + "', not '" + now.method +
                       "': train into another --out folder");
-  const std::string diff = settings_diff(stored.settings, now.settings, tables, may_differ);
+  // A key the record lacks (written before the key existed) takes its default: the run was
+  // trained with the behaviour the default keeps.
+  const nlohmann::json stored_settings =
+      stored.settings.is_object()
+          ? settings_to_json(settings_from_json(stored.settings, dir + " (its run record)"))
+          : stored.settings;
+  const std::string diff = settings_diff(stored_settings, now.settings, tables, may_differ);
   if (!diff.empty())
     throw ConfigError(dir + " holds a " + now.method + " run trained with other settings (" + diff +
                       "): train into another --out folder, or delete it to start over");
