@@ -19,7 +19,8 @@ struct CollectArgs {
   bool noise = false;
   // MuJoCo-Image (--env)
   std::string env;
-  int size = 0, max_steps = 0, planner_samples = 0, planner_horizon = 0;
+  int size = 0, max_steps = 0, planner_samples = 0, planner_horizon = 0, planner_iterations = 0;
+  double planner_sigma = 0, planner_temperature = 0, planner_smoothing = -1;
 };
 
 // collect --env NAME: the MuJoCo-Image domain, with the [mujoco] settings of --config; the
@@ -45,6 +46,10 @@ void collect_mujoco(const CollectArgs& a) {
              m.noise.sigma};
   o.planner.samples = a.planner_samples > 0 ? a.planner_samples : m.planner_samples;
   o.planner.horizon = a.planner_horizon > 0 ? a.planner_horizon : m.planner_horizon;
+  o.planner.iterations = a.planner_iterations;
+  o.planner.sigma = a.planner_sigma;
+  o.planner.temperature = a.planner_temperature;
+  o.planner.smoothing = a.planner_smoothing;
   const mj::CollectReport r = mj::collect(o);
   double mean = 0;
   for (double v : r.returns) mean += v / std::max<size_t>(1, r.returns.size());
@@ -108,6 +113,22 @@ void add_collect(CLI::App& app) {
   sub->add_option("--planner-samples", args->planner_samples,
                   "with --env: the expert planner's rollouts per step (default per env)")
       ->check(CLI::PositiveNumber)
+      ->needs(env);
+  sub->add_option("--planner-iterations", args->planner_iterations,
+                  "with --env: the expert planner's refinements per step (default per env)")
+      ->check(CLI::PositiveNumber)
+      ->needs(env);
+  sub->add_option("--planner-sigma", args->planner_sigma,
+                  "with --env: the planner's exploration noise, fraction of the half ctrlrange")
+      ->check(CLI::Range(1e-6, 10.0))
+      ->needs(env);
+  sub->add_option("--planner-temperature", args->planner_temperature,
+                  "with --env: the planner's weight temperature (default per env)")
+      ->check(CLI::Range(1e-6, 1e6))
+      ->needs(env);
+  sub->add_option("--planner-smoothing", args->planner_smoothing,
+                  "with --env: time correlation of the planner's noise, 0 (white) to <1")
+      ->check(CLI::Range(0.0, 0.999))
       ->needs(env);
   sub->add_option("--planner-horizon", args->planner_horizon,
                   "with --env: the expert planner's rollout length in steps (default per env)")

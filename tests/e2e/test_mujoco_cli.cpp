@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "../support/test_support.hpp"
+#include "data/mujoco_episode.hpp"
 
 namespace cd {
 namespace {
@@ -65,6 +66,20 @@ TEST(CliMujoco, CollectsATinyDatasetAndResumes) {
   r = test::run_cli(args);
   ASSERT_EQ(r.exit_code, 0) << r.describe();
   EXPECT_TRUE(has(r.out, "recorded now: 0")) << r.out;
+  // The planner's other settings reach the expert the file records.
+  std::vector<std::string> tuned = args;
+  tuned.back() = dir / "tuned";
+  for (const char* a : {"--planner-iterations", "3", "--planner-sigma", "0.25",
+                        "--planner-temperature", "0.2", "--planner-smoothing", "0.5"})
+    tuned.push_back(a);
+  r = test::run_cli(tuned);
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  const MujocoEpisode m = read_mujoco_episode_meta(dir / "tuned/episode_000000.h5");
+  EXPECT_TRUE(has(m.extra.at("expert"), "iterations=3 sigma=0.25 temperature=0.2 smoothing=0.5"))
+      << m.extra.at("expert");
+  tuned.push_back("--planner-smoothing");
+  tuned.push_back("1.5");
+  EXPECT_NE(test::run_cli(tuned).exit_code, 0);
 }
 
 TEST(CliMujoco, BenchEnvJsonHasPhysicsRenderAndEverySize) {
@@ -110,6 +125,9 @@ TEST(CliMujoco, BenchExpertReportsReturnAndCostAndIsSeeded) {
   EXPECT_LT(j["return"].get<double>(), 0.0) << "reacher's reward is a negative distance";
   EXPECT_EQ(j["simulated_steps"], 3 * 4 * 2 * 2) << "reacher's default: 2 iterations";
   EXPECT_GT(j["s_per_step"].get<double>(), 0.0);
+  // 2 pairs of consecutive 2-d actions cannot fit a_t ~ W a_{t-1} + b: undefined, null.
+  ASSERT_TRUE(j.contains("action_lag1_r2"));
+  EXPECT_TRUE(j["action_lag1_r2"].is_null());
   const CommandResult again = test::run_cli(args);
   EXPECT_EQ(nlohmann::json::parse(test::split_lines(again.out).at(0))["return"], j["return"]);
 }
