@@ -63,6 +63,13 @@ std::string rollout_dir(const std::string& out, int i) {
   return out + name;
 }
 
+// What a rollout's file records of who drove it.
+std::string describe_mix(double beta, const std::string& policy_dir) {
+  char b[96];
+  std::snprintf(b, sizeof b, "dagger beta %.4f, policy ", beta);
+  return b + policy_dir;
+}
+
 // The policy of a finished iteration, mixed with the expert.
 class DaggerDriver : public Driver {
  public:
@@ -84,11 +91,7 @@ class DaggerDriver : public Driver {
     return rng_.uniform() < beta_ ? expert : policy;
   }
 
-  std::string describe() const override {
-    char b[96];
-    std::snprintf(b, sizeof b, "dagger beta %.4f, policy %s", beta_, dir_.c_str());
-    return b;
-  }
+  std::string describe() const override { return describe_mix(beta_, dir_); }
 
  private:
   std::string dir_;
@@ -128,11 +131,7 @@ class MujocoDaggerDriver : public mj::Driver {
     return executed;
   }
 
-  std::string describe() const override {
-    char b[96];
-    std::snprintf(b, sizeof b, "dagger beta %.4f, policy %s", beta_, dir_.c_str());
-    return b;
-  }
+  std::string describe() const override { return describe_mix(beta_, dir_); }
 
  private:
   std::string dir_;
