@@ -5,7 +5,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
-#include <sstream>
 
 #include <nlohmann/json.hpp>
 
@@ -16,6 +15,7 @@
 #include "core/progress.hpp"
 #include "core/worker_pool.hpp"
 #include "data/h5_io.hpp"
+#include "mujoco/episode_note.hpp"
 
 namespace fs = std::filesystem;
 
@@ -143,19 +143,12 @@ CollectReport collect(const CollectOptions& o) {
   auto job = [&](int i) {
     MujocoEpisode e = record_episode(o, i);
     write_mujoco_episode(o.out + "/" + episode_file_name(i), e);
-    char note[64];
-    std::snprintf(note, sizeof note, "%zu %.3f", e.frames(), e.episode_return);
-    return std::string(note);
+    return EpisodeNote{static_cast<long>(e.frames()), e.episode_return}.encode();
   };
   auto on_done = [&](int i, const std::string& note) {
-    std::istringstream in(note);
-    long frames = 0;
-    double ret = 0;
-    in >> frames >> ret;
-    report.frames += frames;
-    char line[96];
-    std::snprintf(line, sizeof line, "episode %d: %ld steps, return %.1f", i, frames, ret);
-    if (progress) progress->advance(1, line);
+    const EpisodeNote n = EpisodeNote::decode(note);
+    report.frames += n.steps;
+    if (progress) progress->advance(1, n.progress_line(i));
   };
   const PoolReport pool =
       run_worker_pool_with_retries(o.workers, todo, kMaxAttempts, setup, job, on_done);

@@ -8,7 +8,6 @@
 #include <limits>
 #include <memory>
 #include <optional>
-#include <sstream>
 
 #include "bench/runner.hpp"
 #include "collect/expert_episode.hpp"
@@ -22,6 +21,7 @@
 #include "inference/policy_runner.hpp"
 #include "mujoco/frame_policy.hpp"
 #include "mujoco/env.hpp"
+#include "mujoco/episode_note.hpp"
 #include "runs/checkpoint.hpp"
 
 namespace fs = std::filesystem;
@@ -264,21 +264,13 @@ EvalReport evaluate(const EvalOptions& o) {
   auto job = [&](int i) {
     const json r = run_episode(o, i);
     write_file_atomic(ep_dir + "/" + record_name(i), r.dump() + "\n");
-    char note[64];
-    std::snprintf(note, sizeof note, "%d %.3f", r.at("length").get<int>(),
-                  r.at("return").get<double>());
-    return std::string(note);
+    return EpisodeNote{r.at("length").get<long>(), r.at("return").get<double>()}.encode();
   };
   auto on_done = [&](int i, const std::string& note) {
-    std::istringstream in(note);
-    long steps = 0;
-    double ret = 0;
-    in >> steps >> ret;
-    report.steps += steps;
+    const EpisodeNote n = EpisodeNote::decode(note);
+    report.steps += n.steps;
     ++report.run_now;
-    char line[96];
-    std::snprintf(line, sizeof line, "episode %d: %ld steps, return %.1f", i, steps, ret);
-    if (progress) progress->advance(1, line);
+    if (progress) progress->advance(1, n.progress_line(i));
   };
   const PoolReport pool =
       run_worker_pool_with_retries(std::max(1, o.workers), todo, o.max_attempts, [] {}, job, on_done);
