@@ -1,9 +1,49 @@
-# Shared by the reproduction scripts (scripts/cim_paper.sh, scripts/residual_paper.sh): the test
-# suites at a chosen size and the evaluation loop. Source it after setting
+# Shared by the reproduction scripts (scripts/cim_paper.sh, scripts/residual_paper.sh,
+# scripts/mujoco_paper.sh): the kept results, the test suites at a chosen size and the evaluation
+# loop. Source it after setting
 #   CD OUT CONFIG SEEDS TASKS TRIALS WORKERS
 # Every step resumes: eval skips the episodes its output folder already holds.
+#
+# Kept results. $OUT (runs/..., ignored by git) holds data, checkpoints and evaluations, and is
+# lost with the checkout. Every finished evaluation's results.json, probe report and table is
+# also copied to $KEEP (default results/<name of $OUT>, committed), at the same path relative to
+# $OUT. A result found in $KEEP is used as it is: its evaluation is not run again and its
+# checkpoint is not needed, so a table resumes in a fresh checkout from what earlier sessions
+# measured. Delete a kept file (or the folder) to measure it again, e.g. after a code change.
 
 [[ -x $CD ]] || { echo "error: $CD not found; run 'make build' first (or set CD)" >&2; exit 1; }
+KEEP=${KEEP:-results/$(basename "$OUT")}
+
+# keep_file PATH: copies $OUT/REL (PATH) to $KEEP/REL, atomically.
+keep_file() {
+  local rel=${1#"$OUT"/}
+  mkdir -p "$(dirname "$KEEP/$rel")"
+  cp "$1" "$KEEP/$rel.tmp" && mv "$KEEP/$rel.tmp" "$KEEP/$rel"
+}
+
+# kept_eval DIR ARGS...: sets KEPT to the folder whose results.json the tables read: $KEEP's copy
+# of DIR when one is kept, else DIR after `causaldrive eval ARGS --out DIR` (kept when no episode
+# ended in an infrastructure failure, which a rerun would retry).
+kept_eval() {
+  local dir=$1; shift
+  KEPT=$KEEP/${dir#"$OUT"/}
+  [[ -f $KEPT/results.json ]] && return
+  "$CD" eval "$@" --out "$dir"
+  if grep -q '"infrastructure_failure"' "$dir/results.json"; then
+    KEPT=$dir
+  else
+    keep_file "$dir/results.json"
+  fi
+}
+
+# kept_report TABLE METRICS DIRS...: `causaldrive report` over DIRS into $OUT/TABLE.md and .csv,
+# both kept.
+kept_report() {
+  local table=$1 metrics=$2; shift 2
+  "$CD" report "$@" --metrics "$metrics" --markdown "$OUT/$table.md" --csv "$OUT/$table.csv"
+  keep_file "$OUT/$table.md"
+  keep_file "$OUT/$table.csv"
+}
 
 # The suite file (or built-in name) of a test suite at $TASKS tasks.
 suite_of() {
@@ -27,7 +67,7 @@ suite_of() {
 }
 
 # eval_agents TABLE METRICS SENSOR SUITES AGENTS...: every agent x seed x suite (SENSOR clean or
-# shifted), then `report --metrics METRICS` over them into $OUT/TABLE.md and .csv. An agent is
+# shifted), then `report --metrics METRICS` over them into $OUT/TABLE.md and .csv (kept). An agent is
 # a method name, "cs" (nothing trained: one run), or LABEL=METHOD for a run trained under
 # another label (an ablation: $OUT/train/seedS/LABEL holds a METHOD run); "NAME-fewshot" runs
 # are the NAME method.
@@ -41,20 +81,18 @@ eval_agents() {
     for name in $suites; do
       local suite; suite=$(suite_of "$name")
       if [[ $kind == cs ]]; then
-        local dir=$OUT/eval/cs/$name$tag
-        "$CD" eval --config "$CONFIG" --agent cs --suite "$suite" --trials "$TRIALS" \
-          --workers "$WORKERS" --sensor "$sensor" --quiet --out "$dir"
-        dirs+=("$dir")
+        kept_eval "$OUT/eval/cs/$name$tag" --config "$CONFIG" --agent cs --suite "$suite" \
+          --trials "$TRIALS" --workers "$WORKERS" --sensor "$sensor" --quiet
+        dirs+=("$KEPT")
         continue
       fi
       for s in $SEEDS; do
-        local dir=$OUT/eval/$label/seed$s/$name$tag
-        "$CD" eval --config "$CONFIG" --agent "$kind" --checkpoint "$OUT/train/seed$s/$label" \
-          --label "$label" --suite "$suite" --trials "$TRIALS" --workers "$WORKERS" \
-          --sensor "$sensor" --quiet --out "$dir"
-        dirs+=("$dir")
+        kept_eval "$OUT/eval/$label/seed$s/$name$tag" --config "$CONFIG" --agent "$kind" \
+          --checkpoint "$OUT/train/seed$s/$label" --label "$label" --suite "$suite" \
+          --trials "$TRIALS" --workers "$WORKERS" --sensor "$sensor" --quiet
+        dirs+=("$KEPT")
       done
     done
   done
-  "$CD" report "${dirs[@]}" --metrics "$metrics" --markdown "$OUT/$table.md" --csv "$OUT/$table.csv"
+  kept_report "$table" "$metrics" "${dirs[@]}"
 }

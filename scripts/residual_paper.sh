@@ -17,9 +17,12 @@
 #   scripts/residual_paper.sh all       # everything above in order
 #
 # Every step resumes: collect, train and eval skip what their output folders already hold, so
-# an interrupted run is continued by running the same command again. Environment knobs:
+# an interrupted run is continued by running the same command again. Finished evaluations,
+# probe reports and tables are also kept in results/residual_paper (committed; see
+# scripts/paper_lib.sh): a kept result is not measured again. Environment knobs:
 #   CD      the causaldrive binary        (default: build/causaldrive)
 #   OUT     the experiment folder          (default: runs/residual_paper)
+#   KEEP    the kept results               (default: results/residual_paper)
 #   SEEDS   training seeds                 (default: "0 1 2")
 #   TASKS   tasks per suite; 25 uses the built-in suites (default: 25, as the seed's NoCrash)
 #   TRIALS  trials per task                (default: 1)
@@ -88,13 +91,16 @@ probe_all() {
   for s in $SEEDS; do
     for m in bc-oh residual dagger hd fca keyframe; do
       local f=$OUT/probe/seed$s/$m.json
-      [[ -f $f ]] && continue
-      mkdir -p "$(dirname "$f")"
-      "$CD" probe --checkpoint "$OUT/train/seed$s/$m" --data "$DATA" --max-frames 2000 --json \
-        > "$f.tmp" && mv "$f.tmp" "$f"
+      [[ -f $KEEP/probe/seed$s/$m.json ]] && continue
+      if [[ ! -f $f ]]; then
+        mkdir -p "$(dirname "$f")"
+        "$CD" probe --checkpoint "$OUT/train/seed$s/$m" --data "$DATA" --max-frames 2000 --json \
+          > "$f.tmp" && mv "$f.tmp" "$f"
+      fi
+      keep_file "$f"
     done
   done
-  python3 - "$OUT/probe" "$SEEDS" <<'PY'
+  python3 - "$KEEP/probe" "$SEEDS" > "$OUT/probe.md" <<'PY'
 import json, sys, statistics as st
 root, seeds = sys.argv[1], sys.argv[2].split()
 print("| method | history effect, path free | history effect, blocked |")
@@ -108,6 +114,8 @@ for m in ["bc-oh", "residual", "dagger", "hd", "fca", "keyframe"]:
         row.append(f"{st.mean(v):.3f} ± {sd:.3f}" if v else "-")
     print(f"| {m} | {row[0]} | {row[1]} |")
 PY
+  keep_file "$OUT/probe.md"
+  cat "$OUT/probe.md"
 }
 
 A="town-a-regular town-a-dense"
@@ -140,7 +148,7 @@ case ${1:-} in
     done
     ;;
   *)
-    sed -n '2,26p' "$0" | sed 's/^# \{0,1\}//'
+    sed -n '2,30p' "$0" | sed 's/^# \{0,1\}//'
     exit 2
     ;;
 esac
