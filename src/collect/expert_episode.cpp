@@ -106,6 +106,7 @@ EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, Epi
         noise_left -= settings_.world.dt;
       }
     }
+    d.noise.push_back(executed.throttle != label.throttle || executed.brake != label.brake);
     r = world_.step(executed);
   }
 

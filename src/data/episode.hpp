@@ -37,6 +37,10 @@ struct EpisodeData {
   std::vector<float> action;     // T*action_dim, the expert's action (the label)
   std::vector<int32_t> command;  // T
   std::vector<float> pose;       // T*3: x, y (m, network frame), heading (rad, 0 = east, CCW)
+  // T: 1 where the executed action was not the expert's label (noise injection, a DAgger
+  // policy), so the motion after that step is not the expert's. Empty is read as all 0 (files
+  // written before the dataset existed); recorders always fill it.
+  std::vector<uint8_t> noise;
   // Ground-truth causes, each a series of length T (group "causes/" in the file).
   std::map<std::string, std::vector<float>> causes;
 

@@ -81,6 +81,7 @@ void validate(const EpisodeMeta& meta, const EpisodeData& data) {
   expect("action", data.action.size(), frames * static_cast<size_t>(data.action_dim));
   expect("command", data.command.size(), frames);
   expect("pose", data.pose.size(), frames * 3);
+  if (!data.noise.empty()) expect("noise", data.noise.size(), frames);
   for (const auto& [name, series] : data.causes) {
     if (name.empty() || name == "." || name.find('/') != std::string::npos) {
       bad("cause name '" + name + "' is not a valid dataset name");
@@ -129,6 +130,10 @@ void write_file(const std::string& file_path, const EpisodeMeta& meta, const Epi
   write_dataset(root, "action", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, {t, a}, {}, data.action.data());
   write_dataset(root, "command", H5T_STD_I32LE, H5T_NATIVE_INT32, {t}, {}, data.command.data());
   write_dataset(root, "pose", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, {t, 3}, {}, data.pose.data());
+  std::vector<uint8_t> clean;
+  if (data.noise.empty()) clean.assign(t, 0);
+  write_dataset(root, "noise", H5T_STD_U8LE, H5T_NATIVE_UINT8, {t}, {},
+                data.noise.empty() ? clean.data() : data.noise.data());
 
   H5Id gcpl = untimed_plist(H5P_GROUP_CREATE);
   H5Id causes(check_id(H5Gcreate2(root, "causes", H5P_DEFAULT, gcpl.get(), H5P_DEFAULT),
@@ -187,6 +192,14 @@ EpisodeData read_data(hid_t root, const EpisodeMeta& meta) {
   expect_frames("command", command.dims[0]);
   expect_frames("pose", pose.dims[0]);
   if (pose.dims[1] != 3) throw Failure("dataset 'pose' should have 3 columns");
+  // Optional: files written before the mask existed read as noise-free.
+  if (has_link(root, "noise", "dataset 'noise'")) {
+    auto noise = read_dataset<uint8_t>(root, "noise", "noise", H5T_NATIVE_UINT8, H5T_INTEGER, 1);
+    expect_frames("noise", noise.dims[0]);
+    data.noise = std::move(noise.values);
+  } else {
+    data.noise.assign(frames, 0);
+  }
 
   const hsize_t stored_frames = static_cast<hsize_t>(
       read_scalar_attribute<int64_t>(root, "frames", H5T_NATIVE_INT64, H5T_INTEGER));

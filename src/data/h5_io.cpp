@@ -201,10 +201,14 @@ std::vector<std::string> attribute_names(hid_t obj) {
   return names;
 }
 
-void require_link(hid_t loc, const std::string& name, const std::string& what) {
+bool has_link(hid_t loc, const std::string& name, const std::string& what) {
   const htri_t exists = H5Lexists(loc, name.c_str(), H5P_DEFAULT);
   if (exists < 0) fail("cannot look up " + what);
-  if (exists == 0) throw Failure("missing " + what);
+  return exists > 0;
+}
+
+void require_link(hid_t loc, const std::string& name, const std::string& what) {
+  if (!has_link(loc, name, what)) throw Failure("missing " + what);
 }
 
 int dim_as_int(hsize_t d, const std::string& label) {

@@ -116,6 +116,7 @@ std::string read_string_attribute(hid_t obj, const std::string& name);
 std::vector<std::string> attribute_names(hid_t obj);
 
 void require_link(hid_t loc, const std::string& name, const std::string& what);
+bool has_link(hid_t loc, const std::string& name, const std::string& what);
 
 int dim_as_int(hsize_t d, const std::string& label);
 

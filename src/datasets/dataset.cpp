@@ -27,11 +27,14 @@ Dataset::Dataset(EpisodeSet episodes, const DatasetOptions& options)
     throw ConfigError("unknown action head '" + opt_.action_head + "'");
   const int n = static_cast<int>(set_.episodes.size());
   val_episodes_ = choose_val_episodes(n, opt_.val_fraction, opt_.seed);
-  // The target-speed label of step t is speed[t+1]: the last step has none.
+  // The target-speed label of step t is speed[t+1]: the last step has none, and a step whose
+  // executed action was noise has none either (its next speed is the noise's).
   const int tail = opt_.action_head == "target_speed" ? 1 : 0;
   for (int e = 0; e < n; ++e) {
     auto& list = is_val_episode(e) ? val_ : train_;
-    for (int t = first_step(); t < set_.episodes[e].frames - tail; ++t) list.push_back({e, t});
+    const PackedEpisode& ep = set_.episodes[e];
+    for (int t = first_step(); t < ep.frames - tail; ++t)
+      if (tail == 0 || expert_motion(ep, t, t + 1)) list.push_back({e, t});
   }
   if (train_.empty() && val_.empty())
     throw DataError("data folder '" + set_.dir + "' has no episode longer than " +

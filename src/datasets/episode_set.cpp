@@ -82,6 +82,7 @@ PackedEpisode pack(const std::string& path, const EpisodeData& d) {
   p.action = d.action;
   p.command = d.command;
   p.pose = d.pose;
+  p.noise = d.noise.empty() ? std::vector<uint8_t>(d.frames(), 0) : d.noise;
   p.causes = d.causes;
   auto it = d.causes.find("path_free");
   if (it != d.causes.end()) p.path_free = it->second;
@@ -96,6 +97,7 @@ PackedEpisode keep_bytes(const std::string& path, MujocoEpisode& m) {
   p.frame_data = std::move(m.obs);
   p.speed.assign(m.frames(), 0.0f);
   p.action = std::move(m.action);
+  p.noise = std::move(m.noise);
   p.command.assign(m.frames(), 0);
   return p;
 }

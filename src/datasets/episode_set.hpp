@@ -35,9 +35,23 @@ struct PackedEpisode {
   std::vector<int32_t> command;  // T, cd::Command (MuJoCo: zeros)
   std::vector<float> path_free;  // T, ground truth 0/1; empty when the file has none
   std::vector<float> pose;       // T*3: x, y (m, network frame), heading (rad, 0 = east, CCW)
+  // T: 1 where the executed action was not the expert's (data/episode.hpp); all 0 for files
+  // without the mask. Methods whose target is the motion itself leave these steps out.
+  std::vector<uint8_t> noise;
   // Every ground-truth series of the file's causes/ group (lead_distance, tl_state, ...).
   std::map<std::string, std::vector<float>> causes;
 };
+
+// Whether the motion from step `from` to step `to` (from < to <= T) is the expert's: no step
+// from .. to-1 executed a noisy action (the action of step t moves the ego to step t+1). A
+// sample whose target is that motion (cim's next speed, dim's future positions, the
+// target_speed head) is left out otherwise.
+inline bool expert_motion(const PackedEpisode& e, int from, int to) {
+  if (e.noise.empty()) return true;
+  for (int t = from; t < to; ++t)
+    if (e.noise[static_cast<size_t>(t)]) return false;
+  return true;
+}
 
 struct EpisodeSet {
   std::string dir;

@@ -3,7 +3,8 @@
 // on a bootstrap resample of the training episodes); in closed loop, a plan by likelihood
 // ascent toward the route goal, driven at the speed it implies.
 //
-// Samples: every step t of every episode with t + horizon*waypoint_step < T; labels are the
+// Samples: every step t of every episode with t + horizon*waypoint_step < T whose future holds
+// no noise-injected step (datasets/episode_set.hpp, expert_motion); labels are the
 // future positions, inputs frame t and the past positions, all in the ego frame of t
 // (datasets/trajectory.hpp). Validation holds out whole episodes (choose_val_episodes);
 // train.max_samples keeps a seeded subset of both splits, shrunk by the same fraction.
@@ -75,7 +76,8 @@ Samples make_samples(const EpisodeSet& eps, const Settings& s) {
     const bool val = std::binary_search(out.val_episodes.begin(), out.val_episodes.end(), e);
     if (!val) out.train_episodes.push_back(e);
     for (int t = 0; t + reach < eps.episodes[e].frames; ++t)
-      (val ? out.val : out.train).push_back({e, t});
+      if (expert_motion(eps.episodes[e], t, t + reach))  // the future is the expert's motion
+        (val ? out.val : out.train).push_back({e, t});
   }
   Rng rng(derive_seed(s.train.seed, kSubsetStream));
   cap_splits(out.train, out.val, s.train.max_samples, rng, SubsetDraw::Partial);

@@ -68,6 +68,7 @@ EpisodeData make_data(int frames = 5, int channels = 3, int height = 4, int widt
     d.pose.push_back(0.01f * static_cast<float>(t));
     d.causes["lead_distance"].push_back(100.0f - static_cast<float>(t));
     d.causes["light_red"].push_back(static_cast<float>(t % 2));
+    d.noise.push_back(t == 2 || t == 3 ? 1 : 0);
   }
   return d;
 }
@@ -129,6 +130,7 @@ TEST_F(H5EpisodeTest, RoundTripKeepsDataAndMeta) {
   EXPECT_EQ(got.action, data.action);
   EXPECT_EQ(got.command, data.command);
   EXPECT_EQ(got.pose, data.pose);
+  EXPECT_EQ(got.noise, data.noise);
   EXPECT_EQ(got.causes, data.causes);
   expect_same_meta(got_meta, meta);
   expect_same_meta(read_episode_meta(path("ep.h5")), meta);
@@ -169,8 +171,10 @@ def check(cond, what):
 
 T, C, H, W, A = 6, 3, 4, 5, 2
 with h5py.File(sys.argv[1], "r") as f:
-    check(sorted(f.keys()) == ["action", "bev", "causes", "command", "pose", "speed"],
+    check(sorted(f.keys()) == ["action", "bev", "causes", "command", "noise", "pose", "speed"],
           "names %s" % sorted(f.keys()))
+    check(f["noise"].dtype == np.uint8 and f["noise"].shape == (T,), "noise layout")
+    check(list(f["noise"][...]) == [1 if t in (2, 3) else 0 for t in range(T)], "noise values")
     want = {"bev": (np.uint8, (T, C, H, W)), "speed": (np.float32, (T,)),
             "action": (np.float32, (T, A)), "command": (np.int32, (T,)),
             "pose": (np.float32, (T, 3))}
@@ -228,6 +232,21 @@ import h5py
 with h5py.File(sys.argv[1], "r+") as f:
     del f["pose"]
 )PY";
+  // A file written before the noise mask existed reads as noise-free.
+  const std::string no_mask = R"PY(
+import sys
+import h5py
+with h5py.File(sys.argv[1], "r+") as f:
+    del f["noise"]
+)PY";
+  ASSERT_EQ(run_python(dir_, no_mask, path("ep.h5")), 0);
+  EXPECT_EQ(read_episode(path("ep.h5")).noise, std::vector<uint8_t>(5, 0));
+  // An episode recorded without a mask is written with an all-zero one.
+  EpisodeData unmasked = make_data();
+  unmasked.noise.clear();
+  write_episode(path("unmasked.h5"), make_meta(), unmasked);
+  EXPECT_EQ(read_episode(path("unmasked.h5")).noise, std::vector<uint8_t>(5, 0));
+
   ASSERT_EQ(run_python(dir_, drop, path("ep.h5")), 0);
   try {
     read_episode(path("ep.h5"));

@@ -111,6 +111,34 @@ TEST(Dataset, LabelsOfBothHeadsAndTheSpeedInput) {
   EXPECT_EQ(ts.train().size(), tb.train().size() - 2);
 }
 
+TEST(Dataset, NoisyStepsGiveNoTargetSpeedSampleButKeepTheirActionLabel) {
+  TempDir dir("cd-learn");
+  test::write_fake_folder(dir / "data", 2, {.frames = 25});
+  EpisodeSet set = load_episode_set(dir / "data");
+  ASSERT_EQ(set.episodes[1].noise, std::vector<uint8_t>(25, 0)) << "written without a mask";
+  // Episode 1 executed injected noise at steps 5, 6 and 7: speed[6..8] is the noise's motion.
+  for (int t : {5, 6, 7}) set.episodes[1].noise[t] = 1;
+  EXPECT_TRUE(expert_motion(set.episodes[1], 0, 5));
+  EXPECT_FALSE(expert_motion(set.episodes[1], 4, 6));
+  EXPECT_TRUE(expert_motion(set.episodes[1], 8, 25));
+
+  auto steps_of = [](const std::vector<SampleRef>& list, int e) {
+    std::vector<int> t;
+    for (const SampleRef& s : list)
+      if (s.episode == e) t.push_back(s.t);
+    return t;
+  };
+  Dataset ts(set, options(2, 2, "target_speed"));
+  std::vector<int> want;
+  for (int t = 2; t < 24; ++t)
+    if (t < 5 || t > 7) want.push_back(t);
+  EXPECT_EQ(steps_of(ts.train(), 1), want);
+  EXPECT_EQ(steps_of(ts.train(), 0).size(), 22u);  // the clean episode keeps every step
+  // The action label is the expert's whatever was executed: every step stays a sample.
+  Dataset tb(set, options(2, 2));
+  EXPECT_EQ(steps_of(tb.train(), 1).size(), 23u);
+}
+
 TEST(Dataset, BcSoSeesOneFrame) {
   Settings s;
   s.model.history = 4;

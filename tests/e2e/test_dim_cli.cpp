@@ -17,6 +17,20 @@ using nlohmann::json;
 using test::expect_one_line_error;
 using test::TempDir;
 
+TEST(DimCli, SamplesWhoseFutureHoldsNoiseAreLeftOut) {
+  TempDir dir("cd-dim");
+  // 60 frames, future reach 4 waypoints x 5 steps = 20: t = 0..39 per episode. Noise at steps
+  // 30..34 touches the future of t = 11..34: 16 samples per episode remain.
+  test::write_toy_folder(dir / "data", 3, {30, 35});
+  const std::string cfg = dir / "c.toml";
+  test::write_text(cfg, "[train]\nepochs = 1\nthreads = 1\nbatch_size = 16\n"
+                        "[dim]\nfeatures = 16\nhidden = 16\n");
+  auto t = test::run_cli(test::train_args(cfg, "dim", dir / "data", dir / "dim"));
+  ASSERT_EQ(t.exit_code, 0) << t.describe();
+  const json samples = json::parse(test::read_text(dir / "dim/dim.json"))["samples"];
+  EXPECT_EQ(samples["train"].get<long>() + samples["val"].get<long>(), 3 * 16) << samples.dump();
+}
+
 TEST(DimCli, WrongFoldersGiveOneLineErrors) {
   TempDir dir("cd-dim");
   test::write_toy_folder(dir / "data", 3);

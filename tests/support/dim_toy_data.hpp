@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <torch/torch.h>
@@ -24,8 +25,10 @@ namespace cd::test {
 inline constexpr int kToyFrames = 60;
 
 // Straight-line episodes in `dir`: episode e drives at speed 2 * (e % 3) m/s with heading 0.4 e, and
-// its frames show a box whose row tells that speed class (channels 2..7).
-inline void write_toy_folder(const std::string& dir, int episodes) {
+// its frames show a box whose row tells that speed class (channels 2..7). Steps
+// [noise.first, noise.second) of every episode are marked as noise-injected.
+inline void write_toy_folder(const std::string& dir, int episodes,
+                             std::pair<int, int> noise = {0, 0}) {
   test::FakeEpisodeSpec spec{.frames = kToyFrames, .channels = 8, .height = 32, .width = 32};
   test::fs::create_directories(dir);
   for (int e = 0; e < episodes; ++e) {
@@ -46,6 +49,8 @@ inline void write_toy_folder(const std::string& dir, int episodes) {
                                    static_cast<float>(h)});
       d.speed[t] = static_cast<float>(v);
     }
+    d.noise.assign(kToyFrames, 0);
+    for (int t = noise.first; t < noise.second; ++t) d.noise[static_cast<size_t>(t)] = 1;
     write_episode(dir + "/" + test::fake_episode_name(e), test::fake_meta(spec), d);
   }
 }
