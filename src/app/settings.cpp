@@ -132,9 +132,12 @@ void visit_settings(S& st, V&& v) {
   v.number("cim", "alpha", st.cim.alpha, 1e-300, 1);
   v.text("cim", "correction", st.cim.correction, {"none", "bonferroni", "bh"});
   v.integer("cim", "max_causes", st.cim.max_causes, 0, 4096);
+  v.text("cim", "selection", st.cim.selection, {"bivariate", "conditional", "partial_r2"});
+  v.number("cim", "min_partial_r2", st.cim.min_partial_r2, 0, 1);
   v.integer("cim", "series_stride", st.cim.series_stride, 1, 1000);
   v.integer("cim", "history", st.cim.history, 1, 64);
   v.integer("cim", "history_stride", st.cim.history_stride, 1, 100);
+  v.integer("cim", "fewshot_steps", st.cim.fewshot_steps, 1, 10000000);
   v.integer("cim", "encoder_units", st.cim.encoder_units, 1, 4096);
   v.integer("cim", "mlp_encoder_units", st.cim.mlp_encoder_units, 1, 4096);
   v.integer("cim", "hidden", st.cim.hidden, 1, 4096);

@@ -74,10 +74,20 @@ struct CimSettings {
   int lags = 3;                         // Granger lags
   double alpha = 0.01;                  // level of the Granger tests
   std::string correction = "bonferroni";  // none | bonferroni | bh
-  int max_causes = 4;                   // at most this many selected (smallest p, then F); 0 = all
+  int max_causes = 4;                   // at most this many selected (ranked by the rule); 0 = all
+  // The selection rule (causal/cause_selection.hpp): "bivariate" (each latent's F test against
+  // the speed, the correction, alpha), "conditional" (each latent tested given the lags of all
+  // the others, the correction, alpha) or "partial_r2" (the share of the speed's remaining
+  // variance a latent's lags explain in the bivariate test, at least min_partial_r2).
+  std::string selection = "partial_r2";
+  double min_partial_r2 = 0.01;
   int series_stride = 5;                // simulation steps between the samples of the series
   int history = 3;                      // last values of each variable the predictor sees
-  int history_stride = 1;               // simulation steps between them
+  int history_stride = 5;               // simulation steps between them (= series_stride)
+  // A few-shot run (train --init RUN): the predictor is fine-tuned for this many Adam steps on
+  // the train.max_samples labels drawn from every episode of the data, which are all the
+  // labels it uses (no validation split; the last weights are kept).
+  int fewshot_steps = 300;
   int encoder_units = 16;               // per-variable linear encoder of cim, cim-entangled
   int mlp_encoder_units = 8;            // per-variable encoder of cim-mlp (all latents)
   int hidden = 64;                      // width of the predictor MLP

@@ -12,21 +12,34 @@ CauseSelection select_causes(const std::vector<std::vector<double>>& speed,
                              const std::vector<std::vector<std::vector<double>>>& latents,
                              const CimSettings& cim, bool use_all) {
   CauseSelection sel;
+  sel.rule = cim.selection;
   const int m = static_cast<int>(latents.size());
   if (m == 0) throw ConfigError("cause selection: no latent variables");
-  std::vector<double> p(m);
+  const bool by_share = cim.selection == "partial_r2";
+  if (!by_share && cim.selection != "bivariate" && cim.selection != "conditional")
+    throw ConfigError("unknown cim.selection '" + cim.selection +
+                      "' (available: bivariate, conditional, partial_r2)");
+  std::vector<GrangerTest> tests;
+  if (cim.selection == "conditional") {
+    tests = conditional_f_tests(speed, latents, cim.lags);
+  } else {
+    for (int i = 0; i < m; ++i) tests.push_back(granger_f_test(speed, latents[i], cim.lags));
+  }
+  std::vector<double> p(m), share(m);
   sel.tests.resize(m);
   for (int i = 0; i < m; ++i) {
     sel.tests[i].index = i;
-    sel.tests[i].test = granger_f_test(speed, latents[i], cim.lags);
-    p[i] = sel.tests[i].test.p_value;
+    sel.tests[i].test = tests[i];
+    p[i] = tests[i].p_value;
+    share[i] = -tests[i].partial_r2;  // ascending key: the largest share first
   }
   sel.rows = sel.tests[0].test.rows;
   const std::vector<double> adj = adjust_p_values(p, cim.correction);
   std::vector<int> significant;
   for (int i = 0; i < m; ++i) {
     sel.tests[i].p_adjusted = adj[i];
-    sel.tests[i].significant = adj[i] <= cim.alpha;
+    sel.tests[i].significant =
+        by_share ? tests[i].partial_r2 >= cim.min_partial_r2 : adj[i] <= cim.alpha;
     if (sel.tests[i].significant) significant.push_back(i);
   }
   sel.significant = static_cast<int>(significant.size());
@@ -57,12 +70,13 @@ CauseSelection select_causes(const std::vector<std::vector<double>>& speed,
   if (significant.empty()) {
     std::vector<int> all(m);
     std::iota(all.begin(), all.end(), 0);
-    sel.ranked = {*std::min_element(all.begin(), all.end(),
-                                    [&](int a, int b) { return better(a, b, p); })};
+    sel.ranked = {*std::min_element(all.begin(), all.end(), [&](int a, int b) {
+      return better(a, b, by_share ? share : p);
+    })};
     sel.fallback = true;
   } else {
     std::sort(significant.begin(), significant.end(),
-              [&](int a, int b) { return better(a, b, adj); });
+              [&](int a, int b) { return better(a, b, by_share ? share : adj); });
     if (cim.max_causes > 0 && static_cast<int>(significant.size()) > cim.max_causes) {
       significant.resize(cim.max_causes);
       sel.capped = true;

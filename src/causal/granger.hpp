@@ -12,6 +12,9 @@ struct GrangerTest {
   int df_num = 0;  // L
   int df_den = 0;  // n - 2L - 1 (bivariate); fewer with conditioning variables
   long rows = 0;   // n: rows of the regression after lagging
+  // The effect size: (SSR_r - SSR_u) / SSR_r, the share of the variance the restricted model
+  // leaves that the candidate's lags explain. Unlike p, it does not grow with n.
+  double partial_r2 = 0;
 };
 
 // One series per episode for the target y and the candidate x (equal lengths per episode).
@@ -22,6 +25,15 @@ struct GrangerTest {
 GrangerTest granger_f_test(const std::vector<std::vector<double>>& y,
                            const std::vector<std::vector<double>>& x, int lags,
                            const std::vector<std::vector<std::vector<double>>>& conditioning = {});
+
+// The conditional test of every candidate: candidate i given the lags of all the others, the
+// numbers granger_f_test(y, candidates[i], lags, {the others}) gives, from one least-squares fit
+// of the full model (the restricted SSR of each from the Wald form of dropping its block), so
+// that 128 latents cost one regression, not 256. A rank-deficient design falls back to one fit
+// per candidate. Throws DataError like granger_f_test.
+std::vector<GrangerTest> conditional_f_tests(
+    const std::vector<std::vector<double>>& y,
+    const std::vector<std::vector<std::vector<double>>>& candidates, int lags);
 
 // Adjusted p-values: "none" (as given), "bonferroni" (p * m, at most 1), "bh"
 // (Benjamini-Hochberg step-up, monotone, at most 1). A variable is selected when its adjusted

@@ -112,6 +112,7 @@ void run_granger(GrangerArgs a) {
                      {"p_adjusted", r.p_adjusted},
                      {"df_num", r.test.df_num},
                      {"df_den", r.test.df_den},
+                     {"partial_r2", r.test.partial_r2},
                      {"selected", r.selected}});
     std::string text = out.dump(2) + "\n";
     std::fwrite(text.data(), 1, text.size(), stdout);
@@ -125,15 +126,15 @@ void run_granger(GrangerArgs a) {
   std::printf("Granger causality -> %s: %d lags, %ld rows in %zu episode(s)%s\n", a.target.c_str(),
               a.lags, first.rows, table.episode_ids.size(),
               a.conditional ? ", each candidate conditioned on the others" : "");
-  std::printf("%-*s  %12s  %12s  %12s  %12s  %s\n", static_cast<int>(width), "variable", "F", "df",
-              "p", "p adjusted", "selected");
+  std::printf("%-*s  %12s  %12s  %12s  %12s  %12s  %s\n", static_cast<int>(width), "variable", "F",
+              "df", "p", "p adjusted", "partial R2", "selected");
   int selected = 0;
   for (const GrangerResult& r : results) {
     std::string df = std::to_string(r.test.df_num) + "," + std::to_string(r.test.df_den);
     // The mark in the "selected" column, no trailing blanks on the other rows.
-    std::printf("%-*s  %12.4f  %12s  %12.4g  %12.4g%s\n", static_cast<int>(width),
+    std::printf("%-*s  %12.4f  %12s  %12.4g  %12.4g  %12.4g%s\n", static_cast<int>(width),
                 r.variable.c_str(), r.test.f_stat, df.c_str(), r.test.p_value, r.p_adjusted,
-                r.selected ? "  *" : "");
+                r.test.partial_r2, r.selected ? "  *" : "");
     selected += r.selected ? 1 : 0;
   }
   std::printf("selected: %d of %zu at alpha %g (correction %s)\n", selected, results.size(),
@@ -171,7 +172,7 @@ void add_granger(CLI::App& app) {
                 "test each candidate conditioning on all the other candidates");
   sub->add_flag("--json", args->json,
                 "print one JSON array (variable, f_stat, p_value, p_adjusted, df_num, df_den, "
-                "selected) and nothing else");
+                "partial_r2, selected) and nothing else");
   // Validated in run_granger rather than by CLI11 so that every user error is one line, exit 1.
   sub->callback([args] { run_granger(*args); });
 }

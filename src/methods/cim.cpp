@@ -5,17 +5,21 @@
 //   run.json                 commit record: method, settings, data folder, input format, init /
 //                            vae_from, finished stages, figures of each stage
 //   vae.pt, vae_metrics.jsonl           stage "vae": the beta-VAE (or a copy of another run's)
-//   series.csv                          stage "series": episode, speed, z0..z{L-1} every
-//                                       cim.series_stride-th frame (what `causaldrive granger
+//   series.csv                          stage "series": segment, speed, z0..z{L-1} every
+//                                       cim.series_stride-th frame of the training episodes,
+//                                       cut at injected noise (what `causaldrive granger
 //                                       --input RUN` reads)
-//   causes.json                         stage "causes": Granger tests, selection, ground truth
+//   causes.json                         stage "causes": Granger tests, the cim.selection rule's
+//                                       picks, the three rules compared, ground truth
 //   predictor.pt, predictor_metrics.jsonl  stage "predictor": best validation epoch
 //   traversal.png, granger.png          stage "pictures" (diagnostics/cim_pictures.hpp)
 //
 // Every file is written atomically before run.json names its stage as done, so a rerun skips
 // finished stages and redoes an interrupted one from its start. A few-shot run (--init RUN)
 // copies RUN's vae.pt and causes.json (no series, no new selection) and fine-tunes RUN's
-// predictor on train.max_samples samples of the new data.
+// predictor for cim.fewshot_steps Adam steps on train.max_samples labels drawn from every
+// episode of the new data: those labels are all it uses (no validation split, the last
+// weights are kept). Samples whose next speed was driven by injected noise are never labels.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -266,11 +270,15 @@ struct SeriesRows {
 // The series as series.csv holds them, and the tests run on exactly the numbers a reader of
 // that file gets: each value is printed with %.9g (enough to tell floats apart) and parsed
 // back, so `causaldrive granger --input RUN` reproduces causes.json to the last bit.
-SeriesRows build_series(const EpisodeSet& eps, const Encoded& enc, int stride) {
+// Only the predictor's training episodes give rows (the tests never see its validation
+// episodes), every stride-th frame; a row whose speed moved under injected noise since the
+// previous row is left out and ends a segment, so no lag spans the noise. The "episode" column
+// numbers these segments.
+SeriesRows build_series(const EpisodeSet& eps, const Encoded& enc, int stride,
+                        const std::vector<int>& val_episodes) {
   SeriesRows s;
   const int n = static_cast<int>(eps.episodes.size());
-  s.speed.resize(n);
-  s.latents.assign(enc.latents, std::vector<std::vector<double>>(n));
+  s.latents.assign(enc.latents, {});
   s.csv = "episode,speed";
   for (int i = 0; i < enc.latents; ++i) s.csv += ",z" + std::to_string(i);
   s.csv += "\n";
@@ -281,15 +289,30 @@ SeriesRows build_series(const EpisodeSet& eps, const Encoded& enc, int stride) {
     s.csv += buf;
     return std::strtod(buf, nullptr);
   };
-  for (int e = 0; e < n; ++e)
-    for (int t = 0; t < eps.episodes[e].frames; t += stride) {
+  bool open = false;  // whether the last segment takes more rows
+  for (int e = 0; e < n; ++e) {
+    if (std::binary_search(val_episodes.begin(), val_episodes.end(), e)) continue;
+    open = false;
+    const PackedEpisode& ep = eps.episodes[e];
+    for (int t = 0; t < ep.frames; t += stride) {
+      if (t > 0 && !expert_motion(ep, t - stride, t)) {
+        open = false;
+        continue;
+      }
+      if (!open) {
+        s.speed.emplace_back();
+        for (auto& z : s.latents) z.emplace_back();
+        open = true;
+      }
+      const int segment = static_cast<int>(s.speed.size()) - 1;
       s.rows.emplace_back(e, t);
-      s.csv += std::to_string(e);
-      s.speed[e].push_back(cell(eps.episodes[e].speed[t]));
+      s.csv += std::to_string(segment);
+      s.speed[segment].push_back(cell(ep.speed[t]));
       const float* mu = enc.at(e, t);
-      for (int i = 0; i < enc.latents; ++i) s.latents[i][e].push_back(cell(mu[i]));
+      for (int i = 0; i < enc.latents; ++i) s.latents[i][segment].push_back(cell(mu[i]));
       s.csv += '\n';
     }
+  }
   return s;
 }
 
@@ -298,6 +321,8 @@ json causes_json(const std::string& method, const CimSettings& cim, const CauseS
   json j;
   j["target"] = "speed";
   j["method"] = method;
+  j["selection"] = sel.rule;
+  j["min_partial_r2"] = cim.min_partial_r2;
   j["lags"] = cim.lags;
   j["alpha"] = cim.alpha;
   j["correction"] = cim.correction;
@@ -319,6 +344,7 @@ json causes_json(const std::string& method, const CimSettings& cim, const CauseS
                    {"p_adjusted", t.p_adjusted},
                    {"df_num", t.test.df_num},
                    {"df_den", t.test.df_den},
+                   {"partial_r2", json_number(t.test.partial_r2)},
                    {"significant", t.significant},
                    {"selected", t.selected}});
   j["latents"] = lat;
@@ -337,6 +363,7 @@ json causes_json(const std::string& method, const CimSettings& cim, const CauseS
   gt["note"] = "Pearson r of each Granger-picked latent (ranked) with the recorded causes";
   json per = json::array();
   std::map<std::string, std::pair<int, double>> best;
+  std::vector<json> corr(s.latents.size());
   for (int i = 0; i < static_cast<int>(s.latents.size()); ++i) {
     const std::vector<double> z = latent_series(i);
     const bool ranked = std::find(sel.ranked.begin(), sel.ranked.end(), i) != sel.ranked.end();
@@ -347,6 +374,7 @@ json causes_json(const std::string& method, const CimSettings& cim, const CauseS
       if (std::isfinite(c) && (!best.count(name) || std::fabs(c) > std::fabs(best[name].second)))
         best[name] = {i, c};
     }
+    corr[i] = r;
     if (ranked) per.push_back({{"index", i}, {"correlation", r}});
   }
   gt["latents"] = per;
@@ -354,6 +382,31 @@ json causes_json(const std::string& method, const CimSettings& cim, const CauseS
   for (const auto& [name, v] : best) b[name] = {{"index", v.first}, {"r", v.second}};
   gt["best_latent_per_cause"] = b;
   j["ground_truth"] = gt;
+
+  // The three rules side by side on the same series (issue: a selection that tests
+  // something): how many latents pass each, which it picks and what those track.
+  json rules = json::object();
+  for (const char* rule : {"bivariate", "conditional", "partial_r2"}) {
+    CimSettings c = cim;
+    c.selection = rule;
+    const CauseSelection other = rule == sel.rule ? sel : select_causes(s.speed, s.latents, c, false);
+    json picked = json::array();
+    for (int i : other.ranked) {
+      std::string cause;
+      double top = 0;
+      for (const auto& [name, v] : corr[i].items())
+        if (v.is_number() && std::fabs(v.get<double>()) > std::fabs(top)) {
+          top = v.get<double>();
+          cause = name;
+        }
+      picked.push_back({{"index", i}, {"strongest_cause", cause}, {"r", top}});
+    }
+    rules[rule] = {{"passing", other.significant},
+                   {"fallback", other.fallback},
+                   {"capped", other.capped},
+                   {"picked", picked}};
+  }
+  j["rules"] = rules;
   return j;
 }
 
@@ -413,12 +466,16 @@ json train_predictor(const Settings& s, const std::string& method, const Episode
   const auto start = Clock::now();
   const int H = s.cim.history, hs = s.cim.history_stride;
   const int n_eps = static_cast<int>(eps.episodes.size());
-  const std::vector<int> val_eps = choose_val_episodes(n_eps, s.train.val_fraction, s.train.seed);
+  // A few-shot run: its train.max_samples labels are all it sees, so no episode is held out.
+  const bool fewshot = !init_predictor.empty();
+  const std::vector<int> val_eps =
+      fewshot ? std::vector<int>{} : choose_val_episodes(n_eps, s.train.val_fraction, s.train.seed);
   std::vector<SampleRef> train, val;
   for (int e = 0; e < n_eps; ++e) {
     const bool is_val = std::binary_search(val_eps.begin(), val_eps.end(), e);
     for (int t = (H - 1) * hs; t + 1 < eps.episodes[e].frames; ++t)
-      (is_val ? val : train).push_back({e, t});
+      if (expert_motion(eps.episodes[e], t, t + 1))  // speed[t+1] is the expert's, not noise
+        (is_val ? val : train).push_back({e, t});
   }
   if (train.empty())
     throw DataError("data folder '" + eps.dir + "' gives no training sample for the speed "
@@ -448,24 +505,29 @@ json train_predictor(const Settings& s, const std::string& method, const Episode
   LoopState state;
   state.lr = s.cim.lr;
   std::string best_bytes;
-  if (!init_predictor.empty() && !val.empty()) {
-    // Epoch 0: the initial predictor on the new data (the fine-tuned one must beat it).
-    state.has_best = true;
-    state.best_epoch = 0;
-    state.best_loss = validation_loss(objective, val.size(), s.cim.batch_size);
-    best_bytes = save_module_bytes(*net);
-    metrics += json({{"epoch", 0}, {"val_loss", state.best_loss}}).dump() + "\n";
+  // Few-shot: cim.fewshot_steps Adam steps over the labels (batches of at most all of them),
+  // keeping the last weights; otherwise cim.epochs, keeping the best validation epoch.
+  const int batch = fewshot ? static_cast<int>(std::min<size_t>(s.cim.batch_size, train.size()))
+                            : s.cim.batch_size;
+  const long steps_per_epoch = (static_cast<long>(train.size()) + batch - 1) / batch;
+  const int epochs = fewshot ? static_cast<int>((s.cim.fewshot_steps + steps_per_epoch - 1) /
+                                                steps_per_epoch)
+                             : s.cim.epochs;
+  if (fewshot) {
+    // Epoch 0: the initial predictor's loss on the few-shot labels (eval mode), for comparison.
+    PredictorObjective on_labels(eps, enc, selected, train, train, net, device, s);
+    metrics += json({{"epoch", 0}, {"train_loss", validation_loss(on_labels, train.size(), batch)}})
+                   .dump() + "\n";
   }
   std::optional<Progress> progress;
-  if (!quiet) progress.emplace("train " + method + " predictor", static_cast<long>(train.size()) * s.cim.epochs);
+  if (!quiet) progress.emplace("train " + method + " predictor", static_cast<long>(train.size()) * epochs);
   LoopPlan plan;
-  plan.last_epoch = s.cim.epochs;
-  plan.batch_size = s.cim.batch_size;
+  plan.last_epoch = epochs;
+  plan.batch_size = batch;
   plan.train_size = train.size();
   plan.val_size = val.size();
   plan.shuffle_seed = s.train.seed ^ kPredOrderStream;
   plan.progress = progress ? &*progress : nullptr;
-  const int epochs = s.cim.epochs;
   plan.note = [epochs](int epoch, double v) { return epoch_note(epoch, epochs, "loss", v, 4); };
   const LoopTotals totals = train_epochs(objective, opt, plan, state, [&](const EpochResult& r) {
     json m = {{"epoch", r.epoch}, {"train_loss", r.train_loss}};
@@ -473,7 +535,7 @@ json train_predictor(const Settings& s, const std::string& method, const Episode
     m["seconds"] = r.seconds_since_start();
     m["samples_per_s"] = r.samples_per_s;
     metrics += m.dump() + "\n";
-    if (r.improved) best_bytes = save_module_bytes(*net);
+    if (r.improved || fewshot) best_bytes = save_module_bytes(*net);
   });
   if (progress) progress->finish();
   write_file_atomic(out + "/" + kCimPredictorFile, best_bytes);
@@ -481,7 +543,11 @@ json train_predictor(const Settings& s, const std::string& method, const Episode
 
   const int val_episodes = static_cast<int>(val_eps.size());
   return {{"variables", V},
-          {"epochs", s.cim.epochs},
+          {"epochs", epochs},
+          {"fewshot", fewshot},
+          {"steps", steps_per_epoch * epochs},
+          {"labels", static_cast<long>(train.size() + val.size())},
+          {"kept_epoch", fewshot ? epochs : state.best_epoch},
           {"best_epoch", state.best_epoch},
           {"best_loss", state.best_loss},
           {"loss", s.train.loss},
@@ -541,7 +607,9 @@ struct StagedRecord {
 void causes_stage(const Settings& s, const std::string& method, const EpisodeSet& eps,
                   const Encoded& enc, StagedRecord& run, bool quiet) {
   const auto start = Clock::now();
-  const SeriesRows rows = build_series(eps, enc, s.cim.series_stride);
+  const SeriesRows rows = build_series(
+      eps, enc, s.cim.series_stride,
+      choose_val_episodes(static_cast<int>(eps.episodes.size()), s.train.val_fraction, s.train.seed));
   if (!run.done("series")) {
     write_file_atomic(run.out + "/" + kCimSeriesCsv, rows.csv);
     run.commit("series", {{"rows", static_cast<long>(rows.rows.size())}, {"stride", s.cim.series_stride}});
@@ -549,17 +617,23 @@ void causes_stage(const Settings& s, const std::string& method, const EpisodeSet
   const CauseSelection sel = select_causes(rows.speed, rows.latents, s.cim, method == "cim-mlp");
   const json c = causes_json(method, s.cim, sel, rows, eps);
   write_file_atomic(run.out + "/" + kCimCausesJson, c.dump(2) + "\n");
+  const bool by_share = sel.rule == "partial_r2";
+  const std::string rule =
+      by_share ? "partial R2 >= " + fmt("%g", s.cim.min_partial_r2)
+               : sel.rule + " test, " + s.cim.correction + " alpha " + fmt("%g", s.cim.alpha);
   std::string list;
   for (int i : sel.ranked)
-    list += " z" + std::to_string(i) + " (p " + fmt("%.3g", sel.tests[i].test.p_value) + ")";
+    list += " z" + std::to_string(i) +
+            (by_share ? " (partial R2 " + fmt("%.3g", sel.tests[i].test.partial_r2) + ")"
+                      : " (p " + fmt("%.3g", sel.tests[i].test.p_value) + ")");
   if (sel.fallback)
-    std::fprintf(stderr, "warning: no latent Granger-causes the speed at %s alpha %g; the speed "
-                         "predictor uses the smallest-p latent z%d alone\n",
-                 s.cim.correction.c_str(), s.cim.alpha, sel.ranked[0]);
+    std::fprintf(stderr, "warning: no latent Granger-causes the speed by the %s rule; the speed "
+                         "predictor uses the best-ranked latent z%d alone\n",
+                 rule.c_str(), sel.ranked[0]);
   say(quiet, "  causes: " + std::to_string(sel.significant) + " of " +
-                 std::to_string(s.vae.latents) + " latents significant (" + s.cim.correction +
-                 ", alpha " + fmt("%g", s.cim.alpha) + ", " + std::to_string(s.cim.lags) +
-                 " lags, " + std::to_string(sel.rows) + " rows); picked" + list +
+                 std::to_string(s.vae.latents) + " latents pass (" + rule + ", " +
+                 std::to_string(s.cim.lags) + " lags, " + std::to_string(sel.rows) +
+                 " rows); picked" + list +
                  (method == "cim-mlp" ? "; cim-mlp uses all latents" : ""));
   run.commit("causes", {{"significant", sel.significant},
                         {"ranked", sel.ranked},

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -48,6 +49,27 @@ TEST(ConfigLoad, QuickstartConfigEqualsBuiltInDefaults) {
   EXPECT_EQ(loaded, defaults) << "diff (defaults -> quickstart.toml): "
                               << nlohmann::json::diff(defaults, loaded).dump(2);
   EXPECT_FALSE(loaded.contains("source"));
+}
+
+TEST(ConfigLoad, PredictorHistoryHasTheGrangerSeriesSpacingByDefault) {
+  // The causes are tested on lags series_stride steps apart; the predictor that uses them sees
+  // its history at the same spacing (seed 000's public agent: 3 values 5 steps apart).
+  const Settings s;
+  EXPECT_EQ(s.cim.history_stride, s.cim.series_stride);
+  EXPECT_EQ(s.cim.series_stride, 5);
+  const Settings paper = load_settings(std::string(CD_SOURCE_DIR) + "/configs/cim_paper.toml");
+  EXPECT_EQ(paper.cim.history_stride, paper.cim.series_stride);
+  // Both stay configurable, each on its own.
+  const std::string dir = ::testing::TempDir();
+  const std::string path = dir + "/spacing.toml";
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  ASSERT_NE(f, nullptr);
+  std::fputs("[cim]\nseries_stride = 2\nhistory_stride = 3\nselection = \"conditional\"\n", f);
+  std::fclose(f);
+  const Settings own = load_settings(path);
+  EXPECT_EQ(own.cim.series_stride, 2);
+  EXPECT_EQ(own.cim.history_stride, 3);
+  EXPECT_EQ(own.cim.selection, "conditional");
 }
 
 TEST(ConfigLoad, JsonCoversEverySection) {

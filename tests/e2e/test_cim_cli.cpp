@@ -66,19 +66,26 @@ EpisodeData cim_episode(int episode, int frames) {
   return d;
 }
 
-void write_cim_folder(const std::string& dir, int episodes, int frames, int first = 0) {
+// noise: [begin, end) steps of every episode whose executed action was injected noise.
+void write_cim_folder(const std::string& dir, int episodes, int frames, int first = 0,
+                      std::pair<int, int> noise = {0, 0}) {
   test::fs::create_directories(dir);
   test::FakeEpisodeSpec spec;
   spec.height = spec.width = 64;
   EpisodeMeta meta = test::fake_meta(spec);
   meta.channels = kChannels;
-  for (int e = 0; e < episodes; ++e)
-    write_episode(dir + "/" + test::fake_episode_name(e), meta, cim_episode(first + e, frames));
+  for (int e = 0; e < episodes; ++e) {
+    EpisodeData d = cim_episode(first + e, frames);
+    d.noise.assign(static_cast<size_t>(frames), 0);
+    for (int t = noise.first; t < noise.second; ++t) d.noise[static_cast<size_t>(t)] = 1;
+    write_episode(dir + "/" + test::fake_episode_name(e), meta, d);
+  }
 }
 
 std::string tiny_toml(const std::string& extra = "") {
   return "[vae]\nlatents = 8\nepochs = 1\nbatch_size = 32\nmax_frames = 200\n"
          "\n[cim]\nepochs = 2\nbatch_size = 64\nseries_stride = 2\nmax_causes = 2\nhidden = 16\n"
+         "fewshot_steps = 6\n"
          "\n[train]\nthreads = 1\nval_fraction = 0.25\n" + extra;
 }
 
@@ -127,15 +134,29 @@ TEST(CimCli, PipelineWritesEveryStageAndGrangerReproducesTheTests) {
   for (const char* k : {"recon", "kl", "loss", "seconds", "images_per_s"})
     EXPECT_TRUE(json::parse(vae_lines[0])[k].is_number()) << k;
 
-  // series.csv: header, every 2nd frame of each episode.
+  // series.csv: header, every 2nd frame of the 3 training episodes (the predictor's
+  // validation episode is never tested).
   auto lines = test::split_lines(test::read_text(f.run + "/series.csv"));
-  ASSERT_EQ(lines.size(), 1u + 4 * 40);
+  ASSERT_EQ(lines.size(), 1u + 3 * 40);
   EXPECT_EQ(lines[0], "episode,speed,z0,z1,z2,z3,z4,z5,z6,z7");
   json causes = read_json(f.run + "/causes.json");
   EXPECT_EQ(causes["target"], "speed");
   EXPECT_EQ(causes["lags"], 3);
   EXPECT_EQ(causes["correction"], "bonferroni");
-  EXPECT_EQ(causes["rows"], 4 * (40 - 3));
+  EXPECT_EQ(causes["selection"], "partial_r2");
+  EXPECT_EQ(causes["rows"], 3 * (40 - 3));
+  // The three rules side by side; the run's own rule picks what causes.json selects.
+  for (const char* rule : {"bivariate", "conditional", "partial_r2"}) {
+    ASSERT_TRUE(causes["rules"].contains(rule)) << rule;
+    EXPECT_GE(causes["rules"][rule]["picked"].size(), 1u) << rule;
+    EXPECT_LE(causes["rules"][rule]["picked"].size(), 2u) << rule;
+  }
+  std::vector<int> own;
+  for (const auto& p : causes["rules"]["partial_r2"]["picked"]) own.push_back(p["index"]);
+  EXPECT_EQ(own, causes["ranked"].get<std::vector<int>>());
+  for (const auto& l : causes["latents"])
+    EXPECT_EQ(l["significant"].get<bool>(),
+              l["partial_r2"].get<double>() >= causes["min_partial_r2"].get<double>());
   ASSERT_EQ(causes["latents"].size(), 8u);
   const auto selected = causes["selected"].get<std::vector<int>>();
   ASSERT_GE(selected.size(), 1u);
@@ -156,6 +177,8 @@ TEST(CimCli, PipelineWritesEveryStageAndGrangerReproducesTheTests) {
     EXPECT_NEAR(cli[i]["f_stat"].get<double>(), causes["latents"][i]["f_stat"].get<double>(),
                 1e-6 * std::max(1.0, causes["latents"][i]["f_stat"].get<double>()));
     EXPECT_EQ(cli[i]["df_den"], causes["latents"][i]["df_den"]);
+    EXPECT_NEAR(cli[i]["partial_r2"].get<double>(), causes["latents"][i]["partial_r2"].get<double>(),
+                1e-9);
   }
 
   // Pictures: one traversal row per pick (9 cells of 128 px, 2-px separators) and the chart.
@@ -166,9 +189,11 @@ TEST(CimCli, PipelineWritesEveryStageAndGrangerReproducesTheTests) {
   EXPECT_EQ(gw, 2u * 10 + 8 * (6 + 2) + 2);
   EXPECT_EQ(gh, 2u * 10 + 240);
 
-  // Predictor: 2 epochs, samples t >= 2 and t + 1 < 80 in 3 training episodes.
-  EXPECT_EQ(run["figures"]["predictor"]["train_samples"], 3 * (80 - 3));
-  EXPECT_EQ(run["figures"]["predictor"]["val_samples"], 80 - 3);
+  // Predictor: 2 epochs, samples t >= (3-1)*5 (the history's spacing is the series' by
+  // default) and t + 1 < 80 in 3 training episodes.
+  EXPECT_EQ(run["settings"]["cim"]["history_stride"], 5);
+  EXPECT_EQ(run["figures"]["predictor"]["train_samples"], 3 * (80 - 11));
+  EXPECT_EQ(run["figures"]["predictor"]["val_samples"], 80 - 11);
   EXPECT_EQ(test::split_lines(test::read_text(f.run + "/predictor_metrics.jsonl")).size(), 2u);
 
   // A rerun skips every stage and changes nothing; the same settings in another folder give
@@ -192,6 +217,33 @@ TEST(CimCli, PipelineWritesEveryStageAndGrangerReproducesTheTests) {
   EXPECT_THROW(make_agent("cim", f.dir / "nowhere", s), ConfigError);
 }
 
+TEST(CimCli, NoisyStepsAreNeverLabelsAndCutTheGrangerSeries) {
+  // Steps 20..29 of every episode executed injected noise: speed[t+1] of those t is the
+  // noise's motion.
+  CimFixture f;
+  const std::string noisy = f.dir / "noisy";
+  write_cim_folder(noisy, 4, 80, 0, {20, 30});
+  CommandResult r = test::run_cli(train_args(f.config, "cim", noisy, f.run));
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  json run = read_json(f.run + "/run.json");
+  // Predictor samples t = 10..78 less the 10 noisy steps, per episode (3 train, 1 validation).
+  EXPECT_EQ(run["figures"]["predictor"]["train_samples"], 3 * (69 - 10));
+  EXPECT_EQ(run["figures"]["predictor"]["val_samples"], 69 - 10);
+  // Series rows every 2nd step; t = 22..30 moved under noise since the previous row: left
+  // out, and each training episode becomes two segments (t = 0..20 and 32..78).
+  auto lines = test::split_lines(test::read_text(f.run + "/series.csv"));
+  ASSERT_EQ(lines.size(), 1u + 3 * (11 + 24));
+  std::vector<int> segment_rows(6, 0);
+  for (size_t i = 1; i < lines.size(); ++i) {
+    const int seg = std::stoi(lines[i].substr(0, lines[i].find(',')));
+    ASSERT_GE(seg, 0);
+    ASSERT_LT(seg, 6);
+    ++segment_rows[static_cast<size_t>(seg)];
+  }
+  EXPECT_EQ(segment_rows, (std::vector<int>{11, 24, 11, 24, 11, 24}));
+  EXPECT_EQ(read_json(f.run + "/causes.json")["rows"], 3 * ((11 - 3) + (24 - 3)));
+}
+
 TEST(CimCli, FewShotReusesCausesAndTrainsOnMaxSamples) {
   CimFixture f;
   ASSERT_EQ(test::run_cli(train_args(f.config, "cim", f.data, f.run)).exit_code, 0);
@@ -203,17 +255,27 @@ TEST(CimCli, FewShotReusesCausesAndTrainsOnMaxSamples) {
   ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
   json run = read_json(shot + "/run.json");
   EXPECT_EQ(run["init"], test::fs::weakly_canonical(f.run).string());
-  EXPECT_EQ(run["figures"]["predictor"]["train_samples"], 100);
-  EXPECT_EQ(run["figures"]["predictor"]["val_samples"], 60 - 3);
+  // The 100 labels are all it uses: no validation split; fewshot_steps = 6 Adam steps in
+  // batches of 64 (2 per epoch, 3 epochs), the last weights kept.
+  const json& pred = run["figures"]["predictor"];
+  EXPECT_EQ(pred["fewshot"], true);
+  EXPECT_EQ(pred["labels"], 100);
+  EXPECT_EQ(pred["train_samples"], 100);
+  EXPECT_EQ(pred["val_samples"], 0);
+  EXPECT_EQ(pred["val_episodes"], 0);
+  EXPECT_EQ(pred["steps"], 6);
+  EXPECT_EQ(pred["kept_epoch"], 3);
   EXPECT_EQ(test::read_text(shot + "/vae.pt"), test::read_text(f.run + "/vae.pt"));
+  EXPECT_NE(test::read_text(shot + "/predictor.pt"), test::read_text(f.run + "/predictor.pt"));
   json a = read_json(f.run + "/causes.json"), b = read_json(shot + "/causes.json");
   EXPECT_EQ(a["selected"], b["selected"]);
   EXPECT_FALSE(test::fs::exists(shot + "/series.csv"));  // no new selection
-  // Epoch 0 is the init predictor on the new data, then the fine-tuning epochs.
+  // Epoch 0 is the init predictor on the labels, then the fine-tuning epochs.
   auto lines = test::split_lines(test::read_text(shot + "/predictor_metrics.jsonl"));
-  ASSERT_EQ(lines.size(), 3u);
+  ASSERT_EQ(lines.size(), 4u);
   EXPECT_EQ(json::parse(lines[0])["epoch"], 0);
-  EXPECT_TRUE(json::parse(lines[0])["val_loss"].is_number());
+  EXPECT_TRUE(json::parse(lines[0])["train_loss"].is_number());
+  EXPECT_FALSE(json::parse(lines[3]).contains("val_loss"));
 
   expect_one_line_error(test::run_cli(train_args(f.config, "cim", other, f.dir / "x1",
                                                  {"--init", f.dir / "missing"})),
