@@ -5,12 +5,17 @@
 #   scripts/cim_paper.sh table1   # CS, DIM, RIP, CIM     on town-a / town-b regular, dense, stopgo
 #   scripts/cim_paper.sh table2   # CIM, CIM-MLP, CIM-entangled on the same suites
 #   scripts/cim_paper.sh table3   # CIM, CIM-MLP fine-tuned on 100 town-c samples, on town-c
-#   scripts/cim_paper.sh all      # the four above in order
+#   scripts/cim_paper.sh fair     # like-for-like inputs: cim that also sees red lights
+#                                 # (vae.view vehicles+light_red), dim that sees only vehicles
+#                                 # (dim.view), beside cim and dim; error incl. the paper's
+#   scripts/cim_paper.sh all      # the five above in order
 #
 # Every step resumes: collect, train and eval skip what their output folders already hold, so
-# an interrupted run is continued by running the same command again. Environment knobs:
+# an interrupted run is continued by running the same command again; finished evaluations and
+# tables are also kept in results/cim_paper (committed, scripts/paper_lib.sh). Knobs:
 #   CD      the causaldrive binary        (default: build/causaldrive)
 #   OUT     the experiment folder          (default: runs/cim_paper)
+#   KEEP    the kept results               (default: results/cim_paper)
 #   SEEDS   training seeds                 (default: "0 1 2")
 #   TASKS   tasks per suite; 25 uses the built-in suites, other values generate suites
 #           of that size into $OUT/suites from fixed seeds (default: 100, as in the paper)
@@ -52,19 +57,44 @@ train_all() {
   done
 }
 
+# variant_config LABEL TABLE LINE: the paper config with LINE added to its [TABLE] table.
+variant_config() {
+  mkdir -p "$OUT/configs"
+  local file=$OUT/configs/$1.toml
+  sed "/^\[$2\]/a $3" "$CONFIG" > "$file.tmp" && mv "$file.tmp" "$file"
+  echo "$file"
+}
+
+train_fair() {
+  local lights dim_vehicles
+  lights=$(variant_config cim-lights vae 'view = "vehicles+light_red"')
+  dim_vehicles=$(variant_config dim-vehicles dim 'view = "vehicles"')
+  for s in $SEEDS; do
+    local T=$OUT/train/seed$s
+    "$CD" train --config "$lights" --method cim --data "$DATA_A" --seed "$s" --out "$T/cim-lights"
+    "$CD" train --config "$dim_vehicles" --method dim --data "$DATA_A" --seed "$s" \
+      --out "$T/dim-vehicles"
+  done
+}
+
 case ${1:-} in
   train) train_all ;;
   table1) eval_agents table1 all clean "$TEST_SUITES" cs dim rip cim ;;
   table2) eval_agents table2 all clean "$TEST_SUITES" cim cim-mlp cim-entangled ;;
   table3) eval_agents table3 all clean town-c-regular cim cim-mlp cim-fewshot cim-mlp-fewshot ;;
+  fair)
+    train_fair
+    eval_agents fair error,stopgo clean "$TEST_SUITES" cim cim-lights=cim dim dim-vehicles=dim
+    ;;
   all)
     train_all
     eval_agents table1 all clean "$TEST_SUITES" cs dim rip cim
     eval_agents table2 all clean "$TEST_SUITES" cim cim-mlp cim-entangled
     eval_agents table3 all clean town-c-regular cim cim-mlp cim-fewshot cim-mlp-fewshot
+    "$0" fair
     ;;
   *)
-    sed -n '2,18p' "$0" | sed 's/^# \{0,1\}//'
+    sed -n '2,23p' "$0" | sed 's/^# \{0,1\}//'
     exit 2
     ;;
 esac

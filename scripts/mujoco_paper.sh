@@ -12,9 +12,11 @@
 #                                    # env's data, validation loss on its held-out episodes
 #
 # Every step resumes: collect, train and eval keep what their output folders already hold, so
-# an interrupted run is continued by running the same command again. Environment knobs:
+# an interrupted run is continued by running the same command again; finished evaluations and
+# the table are also kept in results/mujoco_paper (committed, scripts/paper_lib.sh). Knobs:
 #   CD       the causaldrive binary    (default: build/causaldrive)
 #   OUT      the experiment folder      (default: runs/mujoco_paper)
+#   KEEP     the kept results           (default: results/mujoco_paper)
 #   ENVS     environments               (default: "halfcheetah reacher hopper ant humanoid")
 #   SEEDS    training seeds             (default: "0 1 2")
 #   METHODS  methods                    (default: "bc-so bc-oh residual fca keyframe hd dagger")
@@ -31,7 +33,7 @@ ENVS=${ENVS:-"halfcheetah reacher hopper ant humanoid"}
 SEEDS=${SEEDS:-"0 1 2"}
 METHODS=${METHODS:-"bc-so bc-oh residual fca keyframe hd dagger"}
 CONFIG=${CONFIG:-configs/mujoco_paper.toml}
-[[ -x $CD ]] || { echo "error: $CD not found; run 'make build' first (or set CD)" >&2; exit 1; }
+source scripts/paper_lib.sh
 
 data() {
   for env in $ENVS; do
@@ -53,15 +55,15 @@ train() {
 evaluate() {
   for env in $ENVS; do
     for agent in expert random; do
-      "$CD" eval --env "$env" --config "$CONFIG" --agent "$agent" --quiet \
-        --out "$OUT/eval/$env/$agent"
+      kept_eval "$OUT/eval/$env/$agent" --env "$env" --config "$CONFIG" --agent "$agent" --quiet
     done
     for s in $SEEDS; do
       for m in $METHODS; do
         local run=$OUT/train/$env/seed$s/$m
+        [[ -f $KEEP/eval/$env/seed$s/$m/results.json ]] && continue
         [[ -f $run/checkpoint.json ]] || { echo "skipping $run: not trained" >&2; continue; }
-        "$CD" eval --env "$env" --config "$CONFIG" --agent "$m" --checkpoint "$run" --quiet \
-          --out "$OUT/eval/$env/seed$s/$m"
+        kept_eval "$OUT/eval/$env/seed$s/$m" --env "$env" --config "$CONFIG" --agent "$m" \
+          --checkpoint "$run" --quiet
       done
     done
   done
@@ -89,7 +91,7 @@ PY
 }
 
 table() {
-  "$CD" report "$OUT/eval" --metrics return --markdown "$OUT/table.md" --csv "$OUT/table.csv"
+  kept_report table return "$KEEP/eval"
 }
 
 case ${1:-} in
@@ -100,7 +102,7 @@ case ${1:-} in
   all) data; train; evaluate; table ;;
   lr-sweep) lr_sweep ;;
   *)
-    sed -n '2,24p' "$0" | sed 's/^# \{0,1\}//'
+    sed -n '2,26p' "$0" | sed 's/^# \{0,1\}//'
     exit 2
     ;;
 esac

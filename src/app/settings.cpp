@@ -158,6 +158,7 @@ void visit_settings(S& st, V&& v) {
   v.number("dim", "goal_weight", st.dim.goal_weight, 0, 1000);
   v.integer("dim", "ensemble", st.dim.ensemble, 1, 64);
   v.text("dim", "aggregation", st.dim.aggregation, {"worst", "mean"});
+  v.text("dim", "view", st.dim.view, {});
 
   v.integer("residual", "branches", st.residual.branches, 1, 16);
   v.text("residual", "memory_target", st.residual.memory_target, {"residual", "action", "previous"});

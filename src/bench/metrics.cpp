@@ -92,6 +92,8 @@ nlohmann::json episode_to_json(const EpisodeResult& e) {
                       {"green_light_entries", e.green_light_entries},
                       {"stop_go_events", ev}};
   if (!e.collided_with.empty()) j["collided_with"] = e.collided_with;
+  if (!e.collision_kind.empty()) j["collision_kind"] = e.collision_kind;
+  if (!e.collision_by.empty()) j["collision_by"] = e.collision_by;
   if (!e.failure.empty()) j["failure"] = e.failure;
   return j;
 }
@@ -112,6 +114,8 @@ EpisodeResult episode_from_json(const nlohmann::json& j) {
     e.light_passages = j.at("light_passages").get<int>();
     e.green_light_entries = j.at("green_light_entries").get<int>();
     e.collided_with = j.value("collided_with", "");
+    e.collision_kind = j.value("collision_kind", "");
+    e.collision_by = j.value("collision_by", "");
     e.failure = j.value("failure", "");
     for (const auto& s : j.at("stop_go_events")) {
       StopGoEvent ev;
@@ -139,6 +143,7 @@ std::optional<double> quantile(std::vector<double> v, double q) {
 
 nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
   long n = 0, failures = 0, success = 0, collision = 0, inertia = 0, timeout = 0, red = 0;
+  long vehicle_hits = 0, pedestrian_hits = 0, ego_struck = 0;
   long events = 0, stalls = 0, passages = 0, green = 0;
   double km = 0, completion = 0, distance = 0, duration = 0;
   std::vector<double> delays;
@@ -150,6 +155,11 @@ nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
     ++n;
     success += e.outcome == "success";
     collision += e.outcome == "collision";
+    if (e.outcome == "collision") {
+      vehicle_hits += e.collision_kind == "vehicle";
+      pedestrian_hits += e.collision_kind == "pedestrian";
+      ego_struck += e.collision_by == "ego";
+    }
     inertia += e.outcome == "inertia";
     timeout += e.outcome == "timeout";
     red += e.red_light_violations;
@@ -176,6 +186,12 @@ nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
           // Every episode that ran out of time, inertia included: seed 001's #TIMEOUT.
           {"time_limit_rate", rate(timeout + inertia)},
           {"error_rate", rate(collision + inertia)},
+          // Collisions by kind and by who struck (records before the kinds existed have none),
+          // and seed 000's error: inertia + collisions with vehicles.
+          {"vehicle_collision_rate", rate(vehicle_hits)},
+          {"pedestrian_collision_rate", rate(pedestrian_hits)},
+          {"ego_struck_collision_rate", rate(ego_struck)},
+          {"paper_error_rate", rate(inertia + vehicle_hits)},
           {"stop_go_events", events},
           {"stalls", stalls},
           {"stall_rate", events > 0 ? static_cast<double>(stalls) / events : 0.0},

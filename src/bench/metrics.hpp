@@ -60,6 +60,8 @@ struct EpisodeResult {
   uint64_t traffic_seed = 0;
   std::string outcome;           // success | collision | inertia | timeout | infrastructure_failure
   std::string collided_with;
+  std::string collision_kind;    // collisions: "vehicle" or "pedestrian"
+  std::string collision_by;      // collisions: "ego" (the ego struck) or "other" (it was struck)
   std::string failure;           // what went wrong, for infrastructure failures
   double route_length_m = 0;
   double distance_m = 0;

@@ -186,10 +186,13 @@ const std::vector<FailureCondition>& failure_conditions() {
 const std::vector<MetricSet>& metric_sets() {
   static const std::vector<MetricSet> sets = {
       {"error",
-       "Error rates (%, mean \u00b1 sd over seeds; error = collision + inertia)",
+       "Error rates (%, mean \u00b1 sd over seeds; error = collision + inertia; paper error = "
+       "inertia + collisions with vehicles, seed 000's measure)",
        {{"error_rate", "error %", 100.0},
         {"inertia_rate", "inertia %", 100.0},
-        {"collision_rate", "collision %", 100.0}}},
+        {"collision_rate", "collision %", 100.0},
+        {"paper_error_rate", "paper error %", 100.0},
+        {"pedestrian_collision_rate", "ped. collision %", 100.0}}},
       {"outcomes",
        "Outcomes (%, mean \u00b1 sd over seeds)",
        {{"success_rate", "success %", 100.0},

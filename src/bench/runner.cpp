@@ -132,6 +132,8 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
     case Outcome::Collision:
       r.outcome = "collision";
       r.collided_with = sr.collided_with;
+      r.collision_kind = sr.collision_kind;
+      r.collision_by = sr.ego_struck ? "ego" : "other";
       break;
     default: r.outcome = is_inertia(stopped, free_path, dt) ? "inertia" : "timeout";
   }

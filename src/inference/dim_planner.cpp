@@ -6,6 +6,7 @@
 #include "core/error.hpp"
 #include "nn/dim_net.hpp"
 #include "runs/record.hpp"
+#include "sense/grey_view.hpp"
 
 namespace cd {
 
@@ -16,6 +17,7 @@ struct DimPlanner::Impl {
   std::unique_ptr<DimEnsemble> ensemble;
   DimPlanOptions options;
   torch::Tensor frame;  // 1 x C x H x W, reused
+  std::vector<bool> keep;  // dim.view: the channels the model sees
 };
 
 DimPlanner::DimPlanner(const std::string& dir, const std::string& expected_method)
@@ -50,6 +52,9 @@ DimPlanner::DimPlanner(const std::string& dir, const std::string& expected_metho
   impl_->ensemble = std::make_unique<DimEnsemble>(std::move(members));
   impl_->options = {d.plan_iterations, d.plan_lr, d.goal_weight, d.aggregation};
   impl_->frame = torch::zeros({1, no.channels, no.height, no.width});
+  impl_->keep = run->input.channel_names.empty()
+                    ? std::vector<bool>(static_cast<size_t>(no.channels), true)
+                    : view_channel_flags(d.view, run->input.channel_names, "dim.view");
 }
 
 DimPlanner::~DimPlanner() = default;
@@ -69,6 +74,7 @@ DimStep DimPlanner::plan(const uint8_t* frame, const std::vector<double>& past, 
   float* f = impl_->frame.data_ptr<float>();
   const int64_t n = impl_->frame.numel();
   for (int64_t i = 0; i < n; ++i) f[i] = frame[i] ? 1.0f : 0.0f;
+  blank_other_channels(impl_->keep, static_cast<size_t>(n) / impl_->keep.size(), f);
   torch::Tensor p = torch::empty({1, d.past, 2});
   for (int i = 0; i < 2 * d.past; ++i) p.data_ptr<float>()[i] = static_cast<float>(past[i]);
   DimCondition c = impl_->ensemble->condition(impl_->frame, p);

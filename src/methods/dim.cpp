@@ -36,6 +36,7 @@
 #include "runs/dim_run.hpp"
 #include "runs/record.hpp"
 #include "sense/bev.hpp"
+#include "sense/grey_view.hpp"
 #include "train/loop.hpp"
 
 namespace cd {
@@ -115,7 +116,8 @@ class DimObjective : public Objective {
   DimObjective(const EpisodeSet& eps, const DimSettings& d, const std::vector<SampleRef>& train,
                const std::vector<SampleRef>& val, DimNet& net, const torch::Device& device,
                int capacity)
-      : eps_(eps), d_(d), train_(train), val_(val), net_(net), device_(device) {
+      : eps_(eps), d_(d), train_(train), val_(val), net_(net), device_(device),
+        keep_(view_channel_flags(d.view, eps.channel_names, "dim.view")) {
     frames_ = torch::empty({capacity, eps.channels, eps.height, eps.width});
     past_ = torch::empty({capacity, d.past, 2});
     future_ = torch::empty({capacity, d.horizon, 2});
@@ -134,6 +136,7 @@ class DimObjective : public Objective {
       for (int64_t i = lo; i < hi; ++i) {
         const SampleRef& s = samples[rows[i]];
         eps_.planes01(s.episode, s.t, f + i * fv);
+        blank_other_channels(keep_, eps_.frame_pixels(), f + i * fv);
         dim_sample_positions(eps_.episodes[s.episode], s.t, d_, p + i * 2 * d_.past,
                              z + i * 2 * d_.horizon);
       }
@@ -150,6 +153,7 @@ class DimObjective : public Objective {
   const std::vector<SampleRef>& val_;
   DimNet& net_;
   torch::Device device_;
+  std::vector<bool> keep_;  // dim.view: the channels the model sees
   torch::Tensor frames_, past_, future_;
 };
 
@@ -236,6 +240,7 @@ TrainSummary train_dim(const Settings& settings_in, const TrainRequest& req) {
   for (const auto& e : eps.episodes)
     if (e.pose.size() != 3 * static_cast<size_t>(e.frames))
       throw DataError(req.data_dir + "/" + e.file + " has no pose (T x 3) series: dim needs it");
+  view_channel_flags(s.dim.view, eps.channel_names, "dim.view");  // a bad view: one line, now
   const Samples samples = make_samples(eps, s);
 
   DimRun run;

@@ -47,6 +47,9 @@ struct DimSettings {
   double goal_weight = 0.02;  // weight of -|last waypoint - goal|^2 (per m^2) in the objective
   int ensemble = 3;           // rip: DIMs trained on bootstrap resamples of the episodes
   std::string aggregation = "worst";  // rip: worst (min over members) | mean
+  // The BEV channels the model sees, "a+b" (sense/grey_view.hpp); the others are blank.
+  // Empty: all of them. "vehicles" matches cim's default view (a like-for-like baseline).
+  std::string view;
 };
 
 // residual (appendix B.1, figure 6, equation 5) and its ablations (B.2, B.5, table 11).

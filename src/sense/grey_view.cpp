@@ -45,7 +45,7 @@ std::string join(const std::vector<std::string>& names) {
 }  // namespace
 
 GreyView resolve_view(const std::string& view, const std::vector<std::string>& channel_names,
-                     int height, int width) {
+                     int height, int width, const std::string& key) {
   GreyView v;
   v.channel_count = static_cast<int>(channel_names.size());
   v.height = height;
@@ -56,10 +56,10 @@ GreyView resolve_view(const std::string& view, const std::vector<std::string>& c
     std::string name = view.substr(start, plus == std::string::npos ? std::string::npos : plus - start);
     auto it = std::find(channel_names.begin(), channel_names.end(), name);
     if (name.empty() || it == channel_names.end())
-      throw ConfigError("vae.view: no BEV channel '" + name + "' in the data (channels: " +
+      throw ConfigError(key + ": no BEV channel '" + name + "' in the data (channels: " +
                         join(channel_names) + ")");
     int c = static_cast<int>(it - channel_names.begin());
-    if (c >= 8) throw ConfigError("vae.view: channel '" + name + "' beyond the 8 packed channels");
+    if (c >= 8) throw ConfigError(key + ": channel '" + name + "' beyond the 8 packed channels");
     if (std::find(v.channels.begin(), v.channels.end(), c) == v.channels.end()) v.channels.push_back(c);
     v.mask |= static_cast<uint8_t>(1u << c);
     if (plus == std::string::npos) break;
@@ -81,6 +81,20 @@ void view_from_planes(const GreyView& v, const uint8_t* planes, float* out) {
       if (planes[static_cast<size_t>(c) * pixels + i]) return true;
     return false;
   }, out);
+}
+
+std::vector<bool> view_channel_flags(const std::string& view,
+                                     const std::vector<std::string>& channel_names,
+                                     const std::string& key) {
+  std::vector<bool> keep(channel_names.size(), view.empty());
+  if (!view.empty())
+    for (int c : resolve_view(view, channel_names, 1, 1, key).channels) keep[static_cast<size_t>(c)] = true;
+  return keep;
+}
+
+void blank_other_channels(const std::vector<bool>& keep, size_t pixels, float* frame) {
+  for (size_t c = 0; c < keep.size(); ++c)
+    if (!keep[c]) std::fill(frame + c * pixels, frame + (c + 1) * pixels, 0.0f);
 }
 
 }  // namespace cd

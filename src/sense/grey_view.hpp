@@ -16,9 +16,17 @@ struct GreyView {
   std::vector<int> y0, y1, x0, x1;
 };
 
-// Throws ConfigError naming the unknown channel and the known ones.
+// Throws ConfigError naming the unknown channel and the known ones (`key`: the setting).
 GreyView resolve_view(const std::string& view, const std::vector<std::string>& channel_names,
-                     int height, int width);
+                     int height, int width, const std::string& key = "vae.view");
+
+// The channels of a multi-channel input that `view` ("a+b", the names of resolve_view) keeps:
+// one flag per channel name, all set for an empty view. Throws like resolve_view.
+std::vector<bool> view_channel_flags(const std::string& view,
+                                     const std::vector<std::string>& channel_names,
+                                     const std::string& key);
+// Sets every plane of a C x pixels frame whose flag is off to 0.
+void blank_other_channels(const std::vector<bool>& keep, size_t pixels, float* frame);
 // One 64x64 plane from a packed frame (H*W bytes, bit c = channel c) ...
 void view_from_packed(const GreyView& v, const uint8_t* packed, float* out);
 // ... or from C planes of H*W bytes, 0/255 (what agents are given).

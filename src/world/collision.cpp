@@ -5,6 +5,16 @@
 
 namespace cd {
 
+bool a_strikes(const Box& a, double speed_a, const Box& b, double speed_b) {
+  Vec2 u = b.center - a.center;
+  const double d = std::sqrt(u.dot(u));
+  if (d < 1e-9) return speed_a >= speed_b;
+  u = u * (1.0 / d);
+  const double closing_a = speed_a * (std::cos(a.heading) * u.x + std::sin(a.heading) * u.y);
+  const double closing_b = -speed_b * (std::cos(b.heading) * u.x + std::sin(b.heading) * u.y);
+  return closing_a >= closing_b;
+}
+
 std::array<Vec2, 4> box_corners(const Box& b) {
   Vec2 f{std::cos(b.heading), std::sin(b.heading)};
   Vec2 l{-f.y, f.x};

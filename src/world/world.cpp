@@ -570,6 +570,10 @@ StepResult World::check_events(bool present) {
     if (col.collider == kEgo || col.victim == kEgo) {
       r.outcome = Outcome::Collision;
       r.collided_with = col.collider == kEgo ? col.victim : col.collider;
+      r.ego_struck = col.collider == kEgo;  // SUMO names the striker the collider
+      r.collision_kind = "vehicle";
+      for (const Actor& a : actors_)
+        if (a.id == r.collided_with && a.pedestrian) r.collision_kind = "pedestrian";
       break;
     }
   }
@@ -592,6 +596,8 @@ StepResult World::check_events(bool present) {
       if (boxes_overlap(ego_box, a.box)) {
         r.outcome = Outcome::Collision;
         r.collided_with = a.id;
+        r.collision_kind = a.pedestrian ? "pedestrian" : "vehicle";
+        r.ego_struck = a_strikes(ego_box, ego_.speed, a.box, a.speed);
         break;
       }
     }

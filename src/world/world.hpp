@@ -58,6 +58,8 @@ struct EgoState {
 struct StepResult {
   Outcome outcome = Outcome::Running;
   std::string collided_with;  // actor id when outcome == Collision
+  std::string collision_kind; // "vehicle" or "pedestrian" when outcome == Collision
+  bool ego_struck = false;    // the ego struck the other (a_strikes), else it was struck
   bool ran_red_light = false; // this step entered a junction on red
   // The light (TlCode) of the light-controlled junction this step entered, kTlNone when it
   // entered none (light_at_junction_entry, world/ground_truth.hpp).

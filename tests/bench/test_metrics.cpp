@@ -145,6 +145,30 @@ TEST(BenchMetrics, SummaryRatesExcludeInfrastructureFailures) {
   EXPECT_TRUE(none["start_delay_median_s"].is_null());
 }
 
+TEST(BenchMetrics, CollisionKindsAndThePapersError) {
+  // 8 episodes: inertia x2, a vehicle the ego struck, a vehicle that struck the ego, a
+  // pedestrian the ego struck, a collision recorded before kinds existed, success, timeout.
+  std::vector<EpisodeResult> eps(8);
+  const char* outcomes[] = {"inertia", "inertia", "collision", "collision",
+                            "collision", "collision", "success", "timeout"};
+  for (int i = 0; i < 8; ++i) eps[i].outcome = outcomes[i];
+  eps[2].collision_kind = "vehicle", eps[2].collision_by = "ego";
+  eps[3].collision_kind = "vehicle", eps[3].collision_by = "other";
+  eps[4].collision_kind = "pedestrian", eps[4].collision_by = "ego";
+  nlohmann::json s = summarize(eps);
+  EXPECT_DOUBLE_EQ(s["collision_rate"].get<double>(), 4.0 / 8);
+  EXPECT_DOUBLE_EQ(s["vehicle_collision_rate"].get<double>(), 2.0 / 8);
+  EXPECT_DOUBLE_EQ(s["pedestrian_collision_rate"].get<double>(), 1.0 / 8);
+  EXPECT_DOUBLE_EQ(s["ego_struck_collision_rate"].get<double>(), 2.0 / 8);
+  EXPECT_DOUBLE_EQ(s["error_rate"].get<double>(), 6.0 / 8);
+  // Seed 000's error: inertia + collisions with cars (pedestrians and unknown kinds out).
+  EXPECT_DOUBLE_EQ(s["paper_error_rate"].get<double>(), 4.0 / 8);
+  EpisodeResult back = episode_from_json(episode_to_json(eps[4]));
+  EXPECT_EQ(back.collision_kind, "pedestrian");
+  EXPECT_EQ(back.collision_by, "ego");
+  EXPECT_FALSE(episode_to_json(eps[6]).contains("collision_kind"));
+}
+
 TEST(BenchMetrics, EpisodeRecordRoundTrip) {
   EpisodeResult e;
   e.index = 7;

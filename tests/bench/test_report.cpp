@@ -144,19 +144,21 @@ TEST(ReportCli, SeedsGiveMeanAndSampleStdInCsvAndTable) {
   // Equal values: std 0.
   EXPECT_TRUE(has_line("BC,town-a-dense,collision_rate,0.04,0,3")) << test::read_text(csv);
   // Each metric once though collision_rate is in three sets (error, outcomes, failure) and
-  // success and inertia in two: 11 metrics x 2 suites + header (green_light_rate without a
-  // value in these files: rows with n = 0).
-  EXPECT_EQ(lines.size(), 1u + 2 * 11) << test::read_text(csv);
+  // success and inertia in two: 13 metrics x 2 suites + header (green_light_rate and the
+  // collision kinds without a value in these files: rows with n = 0).
+  EXPECT_EQ(lines.size(), 1u + 2 * 13) << test::read_text(csv);
   EXPECT_TRUE(has_line("BC,town-a-dense,green_light_rate,,,0")) << test::read_text(csv);
+  EXPECT_TRUE(has_line("BC,town-a-dense,paper_error_rate,,,0")) << test::read_text(csv);
   EXPECT_EQ(test::list_dir(dir / "out"), std::vector<std::string>{"report.csv"})
       << "no temporary file left beside the CSV";
 
   // The table shows the same in %, one decimal.
+  // Error, inertia, collision, the paper's error and pedestrian collisions per suite.
   std::vector<std::string> row = cells(table_row(r.out, "Error rates", "BC"));
-  ASSERT_EQ(row.size(), 1u + 2 * 3) << r.out;
+  ASSERT_EQ(row.size(), 1u + 2 * 5) << r.out;
   // Suites sorted: town-a-dense first.
   EXPECT_EQ(row[1], "30.0 \u00b1 26.5") << r.out;
-  EXPECT_EQ(row[4], "15.0 \u00b1 7.1") << r.out;
+  EXPECT_EQ(row[6], "15.0 \u00b1 7.1") << r.out;
   std::vector<std::string> stop = cells(table_row(r.out, "Stop-and-go", "BC"));
   ASSERT_EQ(stop.size(), 7u) << r.out;
   EXPECT_EQ(stop[4], "37.5 \u00b1 17.7") << r.out;

@@ -9,6 +9,7 @@
 
 #include "../support/dim_toy_data.hpp"
 #include "../support/tiny_run.hpp"
+#include "runs/dim_run.hpp"
 
 namespace cd {
 namespace {
@@ -29,6 +30,36 @@ TEST(DimCli, SamplesWhoseFutureHoldsNoiseAreLeftOut) {
   ASSERT_EQ(t.exit_code, 0) << t.describe();
   const json samples = json::parse(test::read_text(dir / "dim/dim.json"))["samples"];
   EXPECT_EQ(samples["train"].get<long>() + samples["val"].get<long>(), 3 * 16) << samples.dump();
+}
+
+TEST(DimCli, ViewLimitsTheChannelsTheModelSees) {
+  // Two folders that differ only in channel 5 (ch5): a dim that sees ch2+ch3 trains to the
+  // same bytes on both; one that sees every channel does not.
+  TempDir dir("cd-dim");
+  test::write_toy_folder(dir / "a", 3);
+  test::write_toy_folder(dir / "b", 3);
+  for (int e = 0; e < 3; ++e) {
+    const std::string file = dir / ("b/" + test::fake_episode_name(e));
+    EpisodeMeta meta;
+    EpisodeData d = read_episode(file, &meta);
+    const size_t pixels = static_cast<size_t>(d.height) * d.width;
+    for (size_t t = 0; t < d.frames(); ++t)
+      for (size_t i = 0; i < pixels; i += 3) d.bev[t * d.frame_bytes() + 5 * pixels + i] ^= 255;
+    write_episode(file, meta, d);
+  }
+  auto train = [&](const std::string& view, const std::string& data, const std::string& out) {
+    const std::string cfg = dir / ("c" + view + ".toml");
+    test::write_text(cfg, "[train]\nepochs = 1\nthreads = 1\nbatch_size = 16\n"
+                          "[dim]\nfeatures = 16\nhidden = 16\nview = \"" + view + "\"\n");
+    return test::run_cli(test::train_args(cfg, "dim", dir / data, dir / out));
+  };
+  ASSERT_EQ(train("ch2+ch3", "a", "va").exit_code, 0);
+  ASSERT_EQ(train("ch2+ch3", "b", "vb").exit_code, 0);
+  EXPECT_EQ(test::read_text(dir / ("va/" + dim_member_file(0))), test::read_text(dir / ("vb/" + dim_member_file(0))));
+  ASSERT_EQ(train("", "a", "fa").exit_code, 0);
+  ASSERT_EQ(train("", "b", "fb").exit_code, 0);
+  EXPECT_NE(test::read_text(dir / ("fa/" + dim_member_file(0))), test::read_text(dir / ("fb/" + dim_member_file(0))));
+  expect_one_line_error(train("lights", "a", "bad"), "dim.view: no BEV channel 'lights'");
 }
 
 TEST(DimCli, WrongFoldersGiveOneLineErrors) {

@@ -350,6 +350,21 @@ TEST(BoxesOverlap, RotatedFortyFiveDegrees) {
   EXPECT_TRUE(boxes_overlap(d, Box{normal * 0.9, M_PI / 4, 10, 1}));
 }
 
+TEST(CollisionStriker, TheOneClosingFasterStruck) {
+  const Box ego{{0, 0}, 0, 4.5, 1.8};
+  // A stopped car ahead: the moving ego struck it; a car running into the stopped ego's rear
+  // struck the ego.
+  EXPECT_TRUE(a_strikes(ego, 8.0, Box{{4.5, 0}, 0, 4.5, 1.8}, 0.0));
+  EXPECT_FALSE(a_strikes(ego, 0.0, Box{{-4.5, 0}, 0, 4.5, 1.8}, 10.0));
+  // A car crossing from the left into the ego's side while the ego creeps: the car struck.
+  EXPECT_FALSE(a_strikes(ego, 1.0, Box{{0.5, 2.5}, -M_PI / 2, 4.5, 1.8}, 9.0));
+  // The ego at speed into a pedestrian walking across its path: the ego struck.
+  EXPECT_TRUE(a_strikes(ego, 10.0, Box{{3.0, 0.3}, M_PI / 2, 0.5, 0.5}, 1.3));
+  // Head-on: the faster one.
+  EXPECT_TRUE(a_strikes(ego, 12.0, Box{{4.6, 0}, M_PI, 4.5, 1.8}, 5.0));
+  EXPECT_FALSE(a_strikes(ego, 5.0, Box{{4.6, 0}, M_PI, 4.5, 1.8}, 12.0));
+}
+
 TEST(BoxesOverlap, IsSymmetric) {
   std::vector<Box> boxes = {{{0, 0}, 0, 4, 2},           {{3.9, 0}, 0, 4, 2},
                             {{4.1, 0}, 0, 4, 2},         {{1.9, 1.9}, M_PI / 4, 2, 2},
@@ -400,9 +415,37 @@ TEST(WorldCollision, FullThrottleIntoStoppedVehicleCollides) {
   }
   ASSERT_EQ(r.outcome, Outcome::Collision) << "no collision after " << steps << " steps";
   EXPECT_EQ(r.collided_with, id);
+  EXPECT_EQ(r.collision_kind, "vehicle");
+  EXPECT_TRUE(r.ego_struck) << "the ego ran into a stopped car";
   // 20 m of gap at full throttle: about 3.4 s; never before the ego could get there.
   EXPECT_GT(steps, 20);
   EXPECT_THROW(w.step(kBrake), SimError);
+}
+
+TEST(WorldCollision, StoppedEgoRearEndedWasStruck) {
+  World w(test_settings());
+  ASSERT_FALSE(reset_with_room(w, 45).route.empty());
+  const std::string lane = w.ego().lane;
+  // Drive 22 m into the lane, then stop.
+  const double start = w.ego().lane_pos;
+  for (int i = 0; i < 100 && w.ego().lane_pos < start + 22; ++i)
+    ASSERT_EQ(w.step(kThrottle).outcome, Outcome::Running);
+  for (int i = 0; i < 100 && w.ego().speed > 0; ++i)
+    ASSERT_EQ(w.step(kBrake).outcome, Outcome::Running);
+  ASSERT_EQ(w.ego().lane, lane);
+  ASSERT_EQ(w.ego().speed, 0.0);
+  // A scripted car (it ignores safe speeds) stopped 15 m behind, then told to drive 10 m/s;
+  // the ego keeps braking.
+  std::string id = add_vehicle(w, lane, w.ego().lane_pos - 15, 0.0);
+  ASSERT_FALSE(id.empty());
+  w.set_vehicle_speed(id, 10.0);
+  StepResult r;
+  int steps = 0;
+  for (; steps < 100 && r.outcome == Outcome::Running; ++steps) r = w.step(kBrake);
+  ASSERT_EQ(r.outcome, Outcome::Collision) << "no collision after " << steps << " steps";
+  EXPECT_EQ(r.collided_with, id);
+  EXPECT_EQ(r.collision_kind, "vehicle");
+  EXPECT_FALSE(r.ego_struck) << "a stopped ego hit from behind did not strike";
 }
 
 TEST(WorldCollision, BrakingToAStopJustBehindIsNoCollision) {
