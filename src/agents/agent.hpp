@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "app/settings.hpp"
 #include "world/ego_model.hpp"
 
@@ -44,6 +46,9 @@ class Agent {
   virtual Control act(const Observation& obs) = 0;
   // The target speed behind the last act() (NaN when the agent outputs throttle/brake).
   virtual double last_target_speed() const { return std::nan(""); }
+  // Figures of the episode since begin_episode() that the agent wants in its episode record
+  // (results.json "agent"; numbers are averaged over episodes into the summary's "agent").
+  virtual nlohmann::json episode_figures() const { return nlohmann::json::object(); }
 };
 
 // "CxHxW".

@@ -1,6 +1,7 @@
 #include "bench/metrics.hpp"
 
 #include <algorithm>
+#include <map>
 #include <cmath>
 
 #include <nlohmann/json.hpp>
@@ -95,6 +96,7 @@ nlohmann::json episode_to_json(const EpisodeResult& e) {
   if (!e.collision_kind.empty()) j["collision_kind"] = e.collision_kind;
   if (!e.collision_by.empty()) j["collision_by"] = e.collision_by;
   if (!e.failure.empty()) j["failure"] = e.failure;
+  if (!e.agent.empty()) j["agent"] = e.agent;
   return j;
 }
 
@@ -117,6 +119,7 @@ EpisodeResult episode_from_json(const nlohmann::json& j) {
     e.collision_kind = j.value("collision_kind", "");
     e.collision_by = j.value("collision_by", "");
     e.failure = j.value("failure", "");
+    e.agent = j.value("agent", nlohmann::json::object());
     for (const auto& s : j.at("stop_go_events")) {
       StopGoEvent ev;
       ev.time_s = s.at("time_s").get<double>();
@@ -147,6 +150,7 @@ nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
   long events = 0, stalls = 0, passages = 0, green = 0;
   double km = 0, completion = 0, distance = 0, duration = 0;
   std::vector<double> delays;
+  std::map<std::string, std::pair<double, long>> agent;  // numeric agent figures: sum, count
   for (const EpisodeResult& e : episodes) {
     if (e.outcome == "infrastructure_failure") {
       ++failures;
@@ -169,6 +173,11 @@ nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
     completion += e.route_completion();
     distance += e.distance_m;
     duration += e.duration_s;
+    for (const auto& [key, value] : e.agent.items())
+      if (value.is_number()) {
+        agent[key].first += value.get<double>();
+        ++agent[key].second;
+      }
     for (const StopGoEvent& s : e.events) {
       ++events;
       stalls += s.stall;
@@ -177,7 +186,7 @@ nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
   }
   auto rate = [n](long k) { return n > 0 ? static_cast<double>(k) / n : 0.0; };
   auto opt = [](std::optional<double> x) { return x ? nlohmann::json(*x) : nlohmann::json(); };
-  return {{"episodes", n},
+  nlohmann::json summary = {{"episodes", n},
           {"infrastructure_failures", failures},
           {"success_rate", rate(success)},
           {"collision_rate", rate(collision)},
@@ -205,6 +214,13 @@ nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
           {"route_completion", n > 0 ? completion / n : 0.0},
           {"mean_speed", duration > 0 ? distance / duration : 0.0},
           {"distance_km", km}};
+  // The agent's own figures (dim/rip: how far the planner moves its plans), episode means.
+  if (!agent.empty()) {
+    nlohmann::json a = nlohmann::json::object();
+    for (const auto& [key, sc] : agent) a[key] = sc.first / static_cast<double>(sc.second);
+    summary["agent"] = a;
+  }
+  return summary;
 }
 
 }  // namespace cd

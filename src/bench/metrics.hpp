@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include <nlohmann/json_fwd.hpp>
+#include <nlohmann/json.hpp>
 
 namespace cd {
 
@@ -70,6 +70,7 @@ struct EpisodeResult {
   int light_passages = 0;        // junctions entered through a traffic light
   int green_light_entries = 0;   // of them, entered on green (SUMO 'G' or 'g')
   std::vector<StopGoEvent> events;
+  nlohmann::json agent = nlohmann::json::object();  // the agent's episode_figures()
 
   double route_completion() const;
   double mean_speed() const;

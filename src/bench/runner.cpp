@@ -125,6 +125,7 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
   }
 
   r.events = tracker.events();
+  r.agent = agent.episode_figures();
   r.duration_s = world.time() - t0;
   r.distance_m = world.counters().distance;
   switch (sr.outcome) {

@@ -85,6 +85,7 @@ DimStep DimPlanner::plan(const uint8_t* frame, const std::vector<double>& past, 
   step.plan.assign(z.data_ptr<double>(), z.data_ptr<double>() + z.numel());
   step.objective_before = pl.objective_before;
   step.objective_after = pl.objective_after;
+  step.moved_m = pl.moved_m;
   step.target_speed = implied_speed(pl.z, d.waypoint_step, impl_->run.input.dt);
   return step;
 }

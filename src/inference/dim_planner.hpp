@@ -13,7 +13,8 @@ namespace cd {
 struct DimStep {
   std::vector<double> plan;     // H x 2 waypoints (m, ego frame)
   double objective_before = 0;  // J of the initial guess (member 0's mean rollout)
-  double objective_after = 0;
+  double objective_after = 0;   // J of the plan (>= objective_before: the best iterate)
+  double moved_m = 0;           // how far the ascent moved it: mean waypoint distance, m
   double target_speed = 0;      // m/s implied by the plan
 };
 

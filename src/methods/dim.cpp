@@ -360,6 +360,8 @@ class DimAgent : public Agent {
     poses_.clear();
     steps_ = 0;
     target_ = std::nan("");
+    plans_ = moved_plans_ = 0;
+    gain_sum_ = moved_sum_ = 0;
   }
 
   Control act(const Observation& obs) override {
@@ -382,12 +384,28 @@ class DimAgent : public Agent {
     }
     // Replanning every replan_steps steps (the plan covers horizon * waypoint_step steps); the
     // speed of the last plan is tracked in between.
-    if (steps_++ % planning_.replan_steps == 0)
-      target_ = planner_.plan(obs.frames.back(), past, obs.goal_x, obs.goal_y).target_speed;
+    if (steps_++ % planning_.replan_steps == 0) {
+      const DimStep step = planner_.plan(obs.frames.back(), past, obs.goal_x, obs.goal_y);
+      target_ = step.target_speed;
+      ++plans_;
+      gain_sum_ += step.objective_after - step.objective_before;
+      moved_sum_ += step.moved_m;
+      moved_plans_ += step.objective_after > step.objective_before;
+    }
     return pid_.control(target_, obs.speed);
   }
 
   double last_target_speed() const override { return target_; }
+
+  // How far the likelihood ascent moves the plan in closed loop (issue: does the planner
+  // plan, or is the plan the model's mean rollout?).
+  nlohmann::json episode_figures() const override {
+    const double n = plans_ > 0 ? static_cast<double>(plans_) : 1.0;
+    return {{"plans", plans_},
+            {"plan_objective_gain", gain_sum_ / n},
+            {"plans_improved", moved_plans_ / n},
+            {"plan_moved_m", moved_sum_ / n}};
+  }
 
  private:
   std::string method_;
@@ -397,6 +415,8 @@ class DimAgent : public Agent {
   std::deque<OdoPose> poses_;
   long steps_ = 0;
   double target_ = std::nan("");
+  long plans_ = 0, moved_plans_ = 0;  // this episode's plans, those the ascent improved
+  double gain_sum_ = 0, moved_sum_ = 0;  // J(plan) - J(initial guess); metres moved
 };
 
 }  // namespace

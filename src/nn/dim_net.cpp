@@ -198,6 +198,7 @@ DimPlan plan_trajectory(const DimEnsemble& ensemble, const DimCondition& c,
   {
     torch::NoGradGuard no_grad;
     objective(o.iterations == 0);
+    plan.moved_m = (plan.z - z0.detach().reshape({H, 2})).norm(2, {1}).mean().item<double>();
   }
   return plan;
 }

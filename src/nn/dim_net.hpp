@@ -138,6 +138,7 @@ struct DimPlan {
   torch::Tensor z;                   // H x 2, the plan (the best iterate by the objective)
   double objective_before = 0;       // J(z0)
   double objective_after = 0;        // J(z) >= J(z0)
+  double moved_m = 0;                // mean distance between z and z0 over the waypoints
   std::vector<double> log_q_before;  // per member, at z0
   std::vector<double> log_q_after;   // per member, at z
 };

@@ -49,6 +49,27 @@ TEST(DimCli, TrainsAndDrivesInTheSimulator) {
   EXPECT_EQ(res["summary"]["infrastructure_failures"], 0);
   // It moved: the plan's speed reached the vehicle.
   EXPECT_GT(res["episodes"][0]["route_completion"].get<double>(), 0.0) << res.dump();
+  // How far the planner moved its plans: one plan every replan_steps (2) agent steps; the
+  // best iterate is kept, so the objective never falls; the summary holds the episode means.
+  const json& a = res["episodes"][0]["agent"];
+  ASSERT_TRUE(a.is_object()) << res["episodes"][0].dump();
+  EXPECT_GT(a["plans"].get<double>(), 0.0);
+  EXPECT_GE(a["plan_objective_gain"].get<double>(), 0.0);
+  EXPECT_GE(a["plans_improved"].get<double>(), 0.0);
+  EXPECT_LE(a["plans_improved"].get<double>(), 1.0);
+  EXPECT_GE(a["plan_moved_m"].get<double>(), 0.0);
+  EXPECT_EQ(res["summary"]["agent"], a);
+  // Without ascent steps the plan is the initial guess: no gain, nothing moved.
+  const std::string still = run.dir() / "still.toml";
+  std::string text = test::read_text(run.config());
+  text.replace(text.find("plan_iterations = 10"), 20, "plan_iterations = 0");
+  test::write_text(still, text);
+  test::run_cli_ok(test::eval_args(still, "dim", run.run(), run.suite(), run.dir() / "still", 1));
+  const json s = run.results("still")["episodes"][0]["agent"];
+  EXPECT_GT(s["plans"].get<double>(), 0.0);
+  EXPECT_EQ(s["plan_objective_gain"].get<double>(), 0.0);
+  EXPECT_EQ(s["plans_improved"].get<double>(), 0.0);
+  EXPECT_EQ(s["plan_moved_m"].get<double>(), 0.0);
 }
 
 // A tiny cim (beta-VAE, Granger selection, speed predictor) drives its own target speeds on an
