@@ -28,6 +28,7 @@
 #   TRIALS  trials per task                (default: 1)
 #   WORKERS evaluation workers             (default: 2)
 #   CONFIG  the experiment config          (default: configs/residual_paper.toml)
+#   METHODS the methods of train, table7-9, stopgo and probe (default: all seven)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
@@ -39,7 +40,7 @@ TASKS=${TASKS:-25}
 TRIALS=${TRIALS:-1}
 WORKERS=${WORKERS:-2}
 DATA=$OUT/data/town-a
-METHODS="bc-so bc-oh residual dagger hd fca keyframe"
+METHODS=${METHODS:-"bc-so bc-oh residual dagger hd fca keyframe"}
 source scripts/paper_lib.sh
 
 # Ablations: label, method and the [residual] table appended to the paper config.
@@ -89,7 +90,8 @@ train_ablations() {
 
 probe_all() {
   for s in $SEEDS; do
-    for m in bc-oh residual dagger hd fca keyframe; do
+    for m in $METHODS; do
+      [[ $m == bc-so ]] && continue  # no history to probe
       local f=$OUT/probe/seed$s/$m.json
       [[ -f $KEEP/probe/seed$s/$m.json ]] && continue
       if [[ ! -f $f ]]; then
@@ -101,14 +103,15 @@ probe_all() {
     done
   done
   python3 - "$KEEP/probe" "$SEEDS" > "$OUT/probe.md" <<'PY'
-import json, sys, statistics as st
+import json, os, sys, statistics as st
 root, seeds = sys.argv[1], sys.argv[2].split()
 print("| method | history effect, path free | history effect, blocked |")
 print("|---|---|---|")
 for m in ["bc-oh", "residual", "dagger", "hd", "fca", "keyframe"]:
     row = []
     for group in ["path_free", "blocked"]:
-        v = [json.load(open(f"{root}/seed{s}/{m}.json"))[group]["history_effect"] for s in seeds]
+        v = [json.load(open(f"{root}/seed{s}/{m}.json"))[group]["history_effect"] for s in seeds
+             if os.path.exists(f"{root}/seed{s}/{m}.json")]  # methods not probed yet: "-"
         v = [x for x in v if x is not None]
         sd = st.stdev(v) if len(v) > 1 else 0.0
         row.append(f"{st.mean(v):.3f} ± {sd:.3f}" if v else "-")
@@ -148,7 +151,7 @@ case ${1:-} in
     done
     ;;
   *)
-    sed -n '2,30p' "$0" | sed 's/^# \{0,1\}//'
+    sed -n '2,31p' "$0" | sed 's/^# \{0,1\}//'
     exit 2
     ;;
 esac
