@@ -12,7 +12,8 @@ packages=(
   libstb-dev
   libmujoco-dev libosmesa6-dev
   libgtest-dev libbenchmark-dev
-  python3 python3-numpy python3-h5py python3-statsmodels python3-torch
+  python3 python3-dev python3-numpy python3-h5py python3-statsmodels python3-torch
+  pybind11-dev python3-pybind11
 )
 
 missing=()

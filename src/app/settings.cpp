@@ -351,19 +351,33 @@ Settings settings_from_json(const nlohmann::json& j, const std::string& where) {
   return st;
 }
 
-Settings load_settings(const std::string& path) {
-  Settings st;
-  st.source = path;
-  Reader reader(ConfigFile::load(path));
+namespace {
+
+// Reads `root` over `st` (absent keys keep st's values) and checks what spans several keys.
+Settings read_settings(Settings st, Section root, const std::string& where) {
+  Reader reader(std::move(root));
   visit_settings(st, reader);
   reader.finish();
   if (st.collect.max_route_m < st.collect.min_route_m)
-    throw ConfigError(path + ": collect.max_route_m must be >= collect.min_route_m");
+    throw ConfigError(where + ": collect.max_route_m must be >= collect.min_route_m");
   if (st.collect.noise.max_s < st.collect.noise.min_s)
-    throw ConfigError(path + ": collect.noise.max_s must be >= collect.noise.min_s");
+    throw ConfigError(where + ": collect.noise.max_s must be >= collect.noise.min_s");
   if (st.mujoco.noise.max_steps < st.mujoco.noise.min_steps)
-    throw ConfigError(path + ": mujoco.noise.max_steps must be >= mujoco.noise.min_steps");
+    throw ConfigError(where + ": mujoco.noise.max_steps must be >= mujoco.noise.min_steps");
   return st;
+}
+
+}  // namespace
+
+Settings load_settings(const std::string& path) {
+  Settings st;
+  st.source = path;
+  return read_settings(st, ConfigFile::load(path), path);
+}
+
+Settings override_settings(const Settings& base, const std::string& toml,
+                           const std::string& where) {
+  return read_settings(base, ConfigFile::parse(toml, where), where);
 }
 
 nlohmann::json settings_to_json(const Settings& s) {

@@ -117,6 +117,11 @@ struct Settings : WorldConfig {  // world, ego, bev
 };
 
 Settings load_settings(const std::string& path);  // throws ConfigError
+// `base` with the keys of a TOML text set over it (the Python module's settings dict, as
+// `world.traffic = "dense"` lines); unknown keys and values out of range are ConfigErrors
+// naming `where` and the key, as in a config file.
+Settings override_settings(const Settings& base, const std::string& toml,
+                           const std::string& where);
 nlohmann::json settings_to_json(const Settings& s);
 // The inverse of settings_to_json, for run records: same keys and ranges as a config; missing
 // keys keep their defaults; DataError naming `where` and the key otherwise.

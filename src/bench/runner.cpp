@@ -71,10 +71,6 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
       settings.eval.sensor == "shifted" ? &settings.eval.sensor_shift : nullptr;
   ObservationFeed feed(world, agent, shift, task.traffic_seed);
 
-  EpisodeResult r;
-  r.scenario = task.scenario;
-  r.traffic_seed = task.traffic_seed;
-  r.route_length_m = task.route_length;
   StepResult sr;
   // The ego stands (brake held) while real frames fill the history: never one frame repeated.
   const long prefill = std::max<long>(std::lround(settings.eval.prefill_s / dt),
@@ -84,10 +80,8 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
     sr = world.step(Control{0.0, 1.0});
   }
 
-  StopGoTracker tracker(dt);
-  std::vector<char> stopped, free_path;
+  EpisodeScorer scorer(world, task, dt);
   long n = 0;
-  const double t0 = world.time();
   const auto wall0 = std::chrono::steady_clock::now();
   while (sr.outcome == Outcome::Running) {
     feed.push();
@@ -111,32 +105,48 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
     }
     sr = world.step(c);
     ++n;
-    count_junction_entry(r, sr.entered_light);
-    const double v = world.ego().speed;
-    const bool pf = world.truth().path_free;
-    tracker.observe(v, pf);
-    stopped.push_back(v < kStoppedSpeed);
-    free_path.push_back(pf);
+    scorer.observe(world, sr);
   }
-  tracker.finish();
   if (stats) {
     stats->steps += n;
     stats->seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   }
+  return scorer.finish(world, sr, agent.episode_figures());
+}
 
-  r.events = tracker.events();
-  r.agent = agent.episode_figures();
-  r.duration_s = world.time() - t0;
+EpisodeScorer::EpisodeScorer(const World& world, const Task& task, double dt)
+    : dt_(dt), t0_(world.time()), tracker_(dt) {
+  r_.scenario = task.scenario;
+  r_.traffic_seed = task.traffic_seed;
+  r_.route_length_m = task.route_length;
+}
+
+void EpisodeScorer::observe(const World& world, const StepResult& sr) {
+  count_junction_entry(r_, sr.entered_light);
+  const double v = world.ego().speed;
+  const bool pf = world.truth().path_free;
+  tracker_.observe(v, pf);
+  stopped_.push_back(v < kStoppedSpeed);
+  free_path_.push_back(pf);
+}
+
+EpisodeResult EpisodeScorer::finish(const World& world, const StepResult& last,
+                                    nlohmann::json agent_figures) {
+  tracker_.finish();
+  EpisodeResult r = r_;
+  r.events = tracker_.events();
+  r.agent = std::move(agent_figures);
+  r.duration_s = world.time() - t0_;
   r.distance_m = world.counters().distance;
-  switch (sr.outcome) {
+  switch (last.outcome) {
     case Outcome::Success: r.outcome = "success"; break;
     case Outcome::Collision:
       r.outcome = "collision";
-      r.collided_with = sr.collided_with;
-      r.collision_kind = sr.collision_kind;
-      r.collision_by = sr.ego_struck ? "ego" : "other";
+      r.collided_with = last.collided_with;
+      r.collision_kind = last.collision_kind;
+      r.collision_by = last.ego_struck ? "ego" : "other";
       break;
-    default: r.outcome = is_inertia(stopped, free_path, dt) ? "inertia" : "timeout";
+    default: r.outcome = is_inertia(stopped_, free_path_, dt_) ? "inertia" : "timeout";
   }
   return r;
 }
@@ -170,7 +180,10 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
   settings.world.traffic = suite.traffic;
   resolve_network(settings.world.town);  // a bad town is one clear error, not one per worker
   // Fails early (bad name, missing or foreign checkpoint) before any worker starts.
-  std::string agent_name = make_agent(req.agent, req.checkpoint, settings)->name();
+  auto new_agent = [&](const World* w) {
+    return req.make ? req.make(settings, w) : make_agent(req.agent, req.checkpoint, settings, w);
+  };
+  std::string agent_name = new_agent(nullptr)->name();
   const int trials = settings.eval.trials > 0 ? settings.eval.trials : suite.trials;
   const int total = static_cast<int>(suite.tasks.size()) * trials;
   const std::string label = req.label.empty() ? req.agent : req.label;
@@ -212,17 +225,13 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
     r.task = i / trials;
     r.trial = i % trials;
   };
-  auto task_of = [&](int i) {
-    Task t = suite.tasks[static_cast<size_t>(i / trials)];
-    t.traffic_seed = trial_traffic_seed(t, i % trials);
-    return t;
-  };
+  auto task_of = [&](int i) { return suite_episode_task(suite, trials, i); };
   std::unique_ptr<World> world;
   auto setup = [&] { world = std::make_unique<World>(settings); };
   auto job = [&](int i) {
     inject_crash("eval", i, out);  // CAUSALDRIVE_INJECT_CRASH (core/fault.hpp)
     // The agent is made after the fork: each episode starts from the same agent state.
-    auto agent = make_agent(req.agent, req.checkpoint, settings, world.get());
+    auto agent = new_agent(world.get());
     LoopStats stats;
     std::string trace;
     EpisodeResult r = run_episode(*world, *agent, task_of(i), settings, &stats,
@@ -246,8 +255,16 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
     if (progress) progress->advance(1, "episode " + std::to_string(i) + ": " + outcome);
   };
   // A crashed worker or SUMO failure is the infrastructure's fault: run the episode again.
-  const PoolReport pool = run_worker_pool_with_retries(
-      settings.eval.workers, todo, settings.eval.max_attempts, setup, job, on_done);
+  PoolReport pool;
+  if (req.in_process) {
+    // One after another in this process; an error (the agent's included) ends the call, and
+    // the episodes recorded before it are kept for the next.
+    setup();
+    for (int i : todo) on_done(i, job(i));
+  } else {
+    pool = run_worker_pool_with_retries(settings.eval.workers, todo, settings.eval.max_attempts,
+                                        setup, job, on_done);
+  }
   const std::vector<int>& remaining = pool.failed;
   const std::string& error = pool.first_error;
   if (progress) progress->finish();

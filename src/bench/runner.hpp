@@ -3,6 +3,7 @@
 // processes, one JSON record per finished episode (so a rerun resumes), results.json with
 // the summary (SPEC section 5).
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,13 @@ struct EvalRequest {
   std::string label;       // row name in tables; default: the agent name
   bool quiet = false;
   bool trace = false;      // also write a per-step CSV beside each episode record
+  // Set: makes the agent of every episode in place of make_agent(agent, checkpoint) (a Python
+  // policy); `agent` and `checkpoint` still name it in run.json.
+  std::function<std::unique_ptr<Agent>(const Settings&, const World*)> make;
+  // Runs the episodes one after another in this process, without worker processes (an agent
+  // that cannot cross a fork: a Python callable). Episodes are reset the same way, so the
+  // results are those of the worker processes.
+  bool in_process = false;
 };
 
 struct EvalReport {
@@ -35,6 +43,23 @@ struct EvalReport {
 struct LoopStats {
   long steps = 0;
   double seconds = 0;
+};
+
+// What an episode's record says of the episode as it runs, for any loop that drives a World:
+// made after World::reset (and any prefill), told every step's result, then finished with the
+// last one (outcome, collisions, inertia against timeout, stop-go events, light passages).
+class EpisodeScorer {
+ public:
+  EpisodeScorer(const World& world, const Task& task, double dt);
+  void observe(const World& world, const StepResult& sr);
+  EpisodeResult finish(const World& world, const StepResult& last,
+                       nlohmann::json agent_figures = nlohmann::json::object());
+
+ private:
+  double dt_, t0_;
+  StopGoTracker tracker_;
+  std::vector<char> stopped_, free_path_;
+  EpisodeResult r_;
 };
 
 // One episode of `agent` on `task` (with the trial's traffic seed already in it) in `world`:

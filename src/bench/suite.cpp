@@ -188,4 +188,10 @@ Suite generate_suite(const SuiteRecipe& r, World& world) {
   return s;
 }
 
+Task suite_episode_task(const Suite& suite, int trials, int i) {
+  Task t = suite.tasks.at(static_cast<size_t>(i / trials));
+  t.traffic_seed = trial_traffic_seed(t, i % trials);
+  return t;
+}
+
 }  // namespace cd

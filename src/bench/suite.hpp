@@ -51,5 +51,8 @@ Suite generate_suite(const SuiteRecipe& recipe, World& world);
 
 // The traffic seed of a trial of a task: trial 0 keeps the task's seed.
 uint64_t trial_traffic_seed(const Task& task, int trial);
+// Episode i of a suite run with `trials` trials per task: trial i % trials of task i / trials,
+// with that trial's traffic seed (eval's numbering of episode records).
+Task suite_episode_task(const Suite& suite, int trials, int i);
 
 }  // namespace cd

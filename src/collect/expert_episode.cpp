@@ -31,6 +31,12 @@ uint64_t episode_seed(uint64_t run_seed, int index) {
   return derive_seed(run_seed, static_cast<uint64_t>(index));
 }
 
+Task collect_task(World& world, const CollectSettings& cs, uint64_t seed) {
+  Task task = world.sample_task(derive_seed(seed, 0), cs.min_route_m, cs.max_route_m);
+  if (cs.max_episode_s > 0) task.timeout_s = std::min(task.timeout_s, cs.max_episode_s);
+  return task;
+}
+
 ExpertRecorder::ExpertRecorder(World& world, const Settings& settings)
     : world_(world), settings_(settings), expert_(settings.expert) {}
 
@@ -64,8 +70,7 @@ Control ExpertRecorder::record_step(EpisodeData& d) const {
 EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, EpisodeMeta& meta,
                                    const std::string& png_dir, Driver* driver) {
   const CollectSettings& cs = settings_.collect;
-  Task task = world_.sample_task(derive_seed(seed, 0), cs.min_route_m, cs.max_route_m);
-  if (cs.max_episode_s > 0) task.timeout_s = std::min(task.timeout_s, cs.max_episode_s);
+  const Task task = collect_task(world_, cs, seed);
   world_.reset(task);
   if (driver) driver->begin_episode(world_, seed);
 

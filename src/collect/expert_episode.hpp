@@ -61,4 +61,8 @@ class ExpertRecorder {
 // The seed of episode `index` of a collection run.
 uint64_t episode_seed(uint64_t run_seed, int index);
 
+// The task of a collected episode of seed `episode_seed` (its route drawn within the collect
+// settings' lengths, its timeout capped by collect.max_episode_s).
+Task collect_task(World& world, const CollectSettings& collect, uint64_t episode_seed);
+
 }  // namespace cd

@@ -306,5 +306,33 @@ TEST(ConfigErrors, MujocoKeysAreChecked) {
   EXPECT_TRUE(has(msg, "model.head")) << msg;
 }
 
+// The Python module's settings dict: keys set over a base, unknown keys and bad values refused
+// with the key named, other keys kept from the base.
+TEST(ConfigOverride, SetsKeysOverTheBaseAndRefusesUnknownOnes) {
+  Settings base;
+  base.world.warmup_s = 7;
+  Settings s = override_settings(base, "world.traffic = \"dense\"\neval.trials = 2\n"
+                                       "world.density.dense.cars_per_km = 40.5\n", "settings");
+  EXPECT_EQ(s.world.traffic, "dense");
+  EXPECT_EQ(s.eval.trials, 2);
+  EXPECT_DOUBLE_EQ(s.world.dense.cars_per_km, 40.5);
+  EXPECT_DOUBLE_EQ(s.world.warmup_s, 7);  // kept from the base
+  EXPECT_EQ(base.world.traffic, Settings{}.world.traffic);
+  auto message = [&](const std::string& toml) {
+    try {
+      override_settings(base, toml, "settings");
+    } catch (const ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message("world.trafic = \"dense\"\n").find("world.trafic"), std::string::npos);
+  EXPECT_NE(message("world.traffic = \"jammed\"\n").find("world.traffic"), std::string::npos);
+  EXPECT_NE(message("world.dt = 5.0\n").find("world.dt"), std::string::npos);
+  EXPECT_NE(message("collect.min_route_m = 900.0\ncollect.max_route_m = 100.0\n")
+                .find("max_route_m"), std::string::npos);
+  EXPECT_NE(message("world.traffic = \n").find("settings"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace cd

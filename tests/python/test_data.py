@@ -1,0 +1,66 @@
+"""causaldrive.load_episode against h5py (the independent reader), and its errors."""
+import glob
+import os
+import unittest
+
+import h5py
+import numpy as np
+
+import causaldrive
+from support import TempDirCase, cli, write_config
+
+
+class LoadEpisodeTest(TempDirCase):
+    def test_driving_episode_equals_h5py(self):
+        config = write_config(self.dir, "regular")
+        out = os.path.join(self.dir, "data")
+        cli("collect", "--config", config, "--episodes", 1, "--seed", 4, "--noise", "--out", out)
+        path = glob.glob(os.path.join(out, "*.h5"))[0]
+        ep = causaldrive.load_episode(path)
+        with h5py.File(path, "r") as f:
+            for key in ("bev", "speed", "action", "command", "pose", "noise"):
+                self.assertEqual(ep[key].dtype, f[key].dtype, key)
+                np.testing.assert_array_equal(ep[key], f[key][()], err_msg=key)
+            self.assertEqual(set(ep["causes"]), set(f["causes"]))
+            for name in f["causes"]:
+                np.testing.assert_array_equal(ep["causes"][name], f["causes"][name][()])
+            self.assertEqual(ep["attrs"]["seed"], int(f.attrs["seed"]))
+            self.assertEqual(ep["attrs"]["town"], f.attrs["town"].decode())
+            self.assertEqual(ep["attrs"]["action_names"],
+                             [a.decode() for a in f.attrs["action_names"]])
+        # Handed over, not copied: the arrays are views on the reader's buffers.
+        for key in ("bev", "speed", "action"):
+            self.assertFalse(ep[key].flags.owndata, key)
+            self.assertIsNotNone(ep[key].base, key)
+        self.assertEqual(ep["attrs"]["domain"], "driving")
+
+    def test_errors(self):
+        with self.assertRaises(causaldrive.IoError) as e:
+            causaldrive.load_episode(os.path.join(self.dir, "missing.h5"))
+        self.assertIn("missing.h5", str(e.exception))
+        bad = os.path.join(self.dir, "bad.h5")
+        with open(bad, "wb") as f:
+            f.write(b"not an hdf5 file" * 10)
+        with self.assertRaises(causaldrive.DataError) as e:
+            causaldrive.load_episode(bad)
+        self.assertIsInstance(e.exception, ValueError)
+        # A file whose datasets disagree in length is refused, not half-read.
+        broken = os.path.join(self.dir, "broken.h5")
+        config = write_config(self.dir, "empty")
+        out = os.path.join(self.dir, "one")
+        cli("collect", "--config", config, "--episodes", 1, "--out", out)
+        src = glob.glob(os.path.join(out, "*.h5"))[0]
+        with h5py.File(src, "r") as f, h5py.File(broken, "w") as g:
+            for key in f:
+                f.copy(key, g)
+            for k, v in f.attrs.items():
+                g.attrs[k] = v
+            del g["speed"]
+            g["speed"] = f["speed"][:-1]
+        with self.assertRaises(causaldrive.DataError) as e:
+            causaldrive.load_episode(broken)
+        self.assertIn("speed", str(e.exception))
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -1,0 +1,148 @@
+"""causaldrive.make for driving: the Gymnasium loop, spaces, the collect oracle, errors."""
+import glob
+import os
+import unittest
+
+import h5py
+import numpy as np
+
+import causaldrive
+from support import FAST, TempDirCase, cli, write_config
+
+
+class DrivingEnvTest(TempDirCase):
+    def test_spaces_and_step_loop(self):
+        with causaldrive.make("town-a", settings=dict(FAST, **{"world.traffic": "empty"})) as env:
+            bev = causaldrive._core.settings_json()["bev"]
+            self.assertEqual(env.observation_space["bev"].shape,
+                             (len(env.channel_names), bev["height"], bev["width"]))
+            self.assertEqual(env.observation_space["bev"].dtype, np.uint8)
+            self.assertEqual(env.action_space.shape, (2,))
+            self.assertEqual(env.action_space.dtype, np.float32)
+            self.assertEqual(list(env.action_space.low), [0, 0])
+            self.assertEqual(list(env.action_space.high), [1, 1])
+            obs, info = env.reset(seed=3)
+            self.assertIn(obs, env.observation_space)
+            self.assertEqual(obs["bev"].dtype, np.uint8)
+            self.assertTrue(set(np.unique(obs["bev"])) <= {0, 255})
+            self.assertEqual(obs["speed"].dtype, np.float32)
+            self.assertEqual(set(info["causes"]), set(env.cause_names))
+            self.assertEqual(info["expert_action"].shape, (2,))
+            total, steps = 0.0, 0
+            while True:
+                obs, reward, terminated, truncated, info = env.step(info["expert_action"])
+                self.assertIsInstance(terminated, bool)
+                self.assertIsInstance(truncated, bool)
+                total += reward
+                steps += 1
+                if terminated or truncated:
+                    break
+                self.assertNotIn("outcome", info)
+            # The expert finishes an empty-town route; the reward is the route progress.
+            self.assertEqual(info["outcome"], "success")
+            self.assertTrue(terminated and not truncated)
+            self.assertAlmostEqual(total, info["progress_m"], places=6)
+            self.assertGreater(total, 90.0)
+            record = info["episode_record"]
+            self.assertEqual(record["outcome"], "success")
+            self.assertAlmostEqual(record["duration_s"], steps * env.dt, places=6)
+            self.assertNotIn("expert_action", info)
+            with self.assertRaises(causaldrive.Error) as e:
+                env.step([0.0, 1.0])
+            self.assertIn("after the episode ended", str(e.exception))
+            self.assertIsInstance(e.exception, RuntimeError)
+
+    def test_collect_oracle_same_observations_and_expert_labels(self):
+        """Same seed, same observations as `causaldrive collect`; info's expert_action is the
+        recorded label (files read with h5py)."""
+        config = write_config(self.dir, "regular")
+        out = os.path.join(self.dir, "data")
+        cli("collect", "--config", config, "--episodes", 1, "--seed", 11, "--out", out)
+        path = sorted(glob.glob(os.path.join(out, "*.h5")))[0]
+        with h5py.File(path, "r") as f:
+            bev, action = f["bev"][()], f["action"][()]
+            speed, command = f["speed"][()], f["command"][()]
+            seed = int(f.attrs["seed"])
+            outcome = f.attrs["outcome"].decode()
+        env = causaldrive.make("town-a", config=config)
+        try:
+            obs, info = env.reset(seed=seed)
+            t = 0
+            while True:
+                np.testing.assert_array_equal(obs["bev"], bev[t], err_msg="frame %d" % t)
+                self.assertEqual(obs["speed"][0], speed[t])
+                self.assertEqual(obs["command"], command[t])
+                self.assertEqual(info["expert_action"].dtype, np.float64)
+                np.testing.assert_array_equal(info["expert_action"].astype(np.float32), action[t])
+                obs, _, terminated, truncated, info = env.step(info["expert_action"])
+                t += 1
+                if terminated or truncated:
+                    break
+            self.assertEqual(t, len(bev))
+            self.assertEqual(info["outcome"] if info["outcome"] != "inertia" else "timeout", outcome)
+            # Without a seed, the n-th reset is collect's episode n of collect.seed.
+            env.close()
+            env = causaldrive.make("town-a", config=config, settings={"collect.seed": 11})
+            obs, info = env.reset()
+            np.testing.assert_array_equal(obs["bev"], bev[0])
+            self.assertEqual(info["seed"], seed)
+        finally:
+            env.close()
+
+    def test_suite_walk_and_seeds(self):
+        with causaldrive.make("quickstart", settings={"eval.trials": 2, "world.warmup_s": 5.0}) as env:
+            self.assertEqual(env.episodes, 8)
+            seen = [env.reset()[1]["episode"] for _ in range(3)]
+            self.assertEqual(seen, [0, 1, 2])
+            obs_a, info_a = env.reset(seed=13)
+            self.assertEqual(info_a["episode"], 13 % 8)
+            for _ in range(5):
+                obs_a, *_ = env.step([0.5, 0.0])
+            obs_b, info_b = env.reset(options={"episode": 5})
+            for _ in range(5):
+                obs_b, *_ = env.step([0.5, 0.0])
+            np.testing.assert_array_equal(obs_a["bev"], obs_b["bev"])
+            self.assertEqual(obs_a["speed"][0], obs_b["speed"][0])
+            with self.assertRaises(causaldrive.ConfigError):
+                env.reset(options={"episode": 8})
+            with self.assertRaises(ValueError):
+                env.reset(options={"episod": 1})
+
+    def test_errors(self):
+        with self.assertRaises(causaldrive.ConfigError) as e:
+            causaldrive.make("town-q")
+        self.assertIn("unknown environment 'town-q'", str(e.exception))
+        with self.assertRaises(ValueError) as e:
+            causaldrive.make("town-a", settings={"world.trafic": "dense"})
+        self.assertIn("world.trafic", str(e.exception))
+        with self.assertRaises(ValueError) as e:
+            causaldrive.make("town-a", settings={"world.traffic": "jammed"})
+        self.assertIn("world.traffic", str(e.exception))
+        with self.assertRaises(causaldrive.ConfigError):
+            causaldrive.make("town-a", config=os.path.join(self.dir, "missing.toml"))
+        env = causaldrive.make("town-a", settings=FAST)
+        try:
+            with self.assertRaises(causaldrive.Error) as e:
+                env.step([0.0, 0.0])
+            self.assertIn("before reset", str(e.exception))
+            env.reset(seed=1)
+            for bad in ([0.5], [[0.5, 0.0]], [0.1, 0.2, 0.3], "go"):
+                with self.assertRaises(ValueError) as e:
+                    env.step(bad)
+                self.assertIn("action", str(e.exception))
+            with self.assertRaises(ValueError):
+                env.step([float("nan"), 0.0])
+            # One libsumo simulation per process: a second world is refused while one is open.
+            with self.assertRaises(causaldrive.Error) as e:
+                causaldrive.make("town-b")
+            self.assertIn("close()", str(e.exception))
+            env.step(np.array([0.0, 1.0], dtype=np.float32))  # still usable
+        finally:
+            env.close()
+        with self.assertRaises(causaldrive.Error):
+            env.reset()
+        causaldrive.make("town-b", settings={"world.warmup_s": 1.0}).close()  # free again
+
+
+if __name__ == "__main__":
+    unittest.main()
