@@ -164,10 +164,42 @@ def make(name, config=None, settings=None):
     return DrivingEnv(name, config, settings)
 
 
-def register_gymnasium():
+def _gymnasium_space(space, gs):
+    if isinstance(space, Dict):
+        return gs.Dict({k: _gymnasium_space(s, gs) for k, s in space.spaces.items()})
+    if isinstance(space, Discrete):
+        return gs.Discrete(space.n)
+    return gs.Box(low=space.low, high=space.high, shape=space.shape, dtype=space.dtype)
+
+
+def register_gymnasium(gymnasium=None):
     """Registers every built-in suite, town and MuJoCo-Image environment with gymnasium as
-    "causaldrive/NAME" (gymnasium must be installed; Debian does not ship it)."""
-    import gymnasium
+    "causaldrive/NAME" (gymnasium must be installed; Debian does not ship it). The registered
+    environments are thin gymnasium.Env wrappers with gymnasium's own spaces."""
+    if gymnasium is None:
+        import gymnasium
+    gs = gymnasium.spaces
+
+    class GymnasiumEnv(gymnasium.Env):
+        metadata = {"render_modes": []}
+
+        def __init__(self, name, config=None, settings=None, render_mode=None):
+            self.env = make(name, config, settings)
+            self.observation_space = _gymnasium_space(self.env.observation_space, gs)
+            self.action_space = _gymnasium_space(self.env.action_space, gs)
+
+        def reset(self, *, seed=None, options=None):
+            super().reset(seed=seed)
+            return self.env.reset(seed=seed, options=options)
+
+        def step(self, action):
+            return self.env.step(action)
+
+        def close(self):
+            self.env.close()
+
+    ids = []
     for name in list(suite_names()) + list(town_names()) + list(mujoco_env_names()):
-        gymnasium.register(id="causaldrive/" + name, entry_point=make, kwargs={"name": name},
-                           disable_env_checker=True)
+        ids.append("causaldrive/" + name)
+        gymnasium.register(id=ids[-1], entry_point=GymnasiumEnv, kwargs={"name": name})
+    return ids

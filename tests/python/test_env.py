@@ -1,6 +1,7 @@
 """causaldrive.make for driving: the Gymnasium loop, spaces, the collect oracle, errors."""
 import glob
 import os
+import types
 import unittest
 
 import h5py
@@ -142,6 +143,43 @@ class DrivingEnvTest(TempDirCase):
         with self.assertRaises(causaldrive.Error):
             env.reset()
         causaldrive.make("town-b", settings={"world.warmup_s": 1.0}).close()  # free again
+
+    def test_gymnasium_registration(self):
+        """register_gymnasium against a stand-in with gymnasium's registration surface
+        (gymnasium itself is not a Debian package): every environment is registered, and the
+        wrapper is a gymnasium.Env with gymnasium's spaces that runs the same episode."""
+        registry = {}
+
+        class Env:
+            def reset(self, *, seed=None, options=None):
+                self.seeded = seed
+
+        class Space:
+            def __init__(self, *args, **kwargs):
+                self.args, self.kwargs = args, kwargs
+
+        gym = types.SimpleNamespace(
+            Env=Env, register=lambda id, entry_point, kwargs: registry.update({id: (entry_point, kwargs)}),
+            spaces=types.SimpleNamespace(Box=type("Box", (Space,), {}),
+                                         Dict=type("Dict", (Space,), {}),
+                                         Discrete=type("Discrete", (Space,), {})))
+        ids = causaldrive.register_gymnasium(gym)
+        self.assertEqual(set(ids), set(registry))
+        self.assertIn("causaldrive/town-a-regular", registry)
+        self.assertIn("causaldrive/hopper", registry)
+        self.assertIn("causaldrive/town-b", registry)
+        entry, kwargs = registry["causaldrive/town-a"]
+        env = entry(settings=FAST, **kwargs)
+        try:
+            self.assertIsInstance(env, Env)
+            self.assertEqual(env.action_space.kwargs["shape"], (2,))
+            self.assertEqual(set(env.observation_space.args[0]), {"bev", "speed", "command"})
+            obs, info = env.reset(seed=3)
+            self.assertEqual(env.seeded, 3)
+            out = env.step(info["expert_action"])
+            self.assertEqual(len(out), 5)
+        finally:
+            env.close()
 
 
 if __name__ == "__main__":
