@@ -146,8 +146,10 @@ py::array owning_array(V&& values, std::vector<py::ssize_t> shape) {
   return py::array_t<T>(shape, holder->data(), owner);
 }
 
-// An action as doubles: a 1-d array-like of exactly `dim` finite numbers, else ConfigError.
-std::vector<double> action_values(const py::handle& action, int dim, const char* names) {
+// An action as doubles: a 1-d array-like of exactly `dim` (or, with dim_max, dim to dim_max)
+// finite numbers, else ConfigError.
+std::vector<double> action_values(const py::handle& action, int dim, const char* names,
+                                  int dim_max = 0) {
   py::array_t<double, py::array::c_style | py::array::forcecast> a;
   try {
     a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(action);
@@ -160,10 +162,11 @@ std::vector<double> action_values(const py::handle& action, int dim, const char*
   shape << "(";
   for (py::ssize_t i = 0; i < a.ndim(); ++i) shape << (i ? ", " : "") << a.shape(i);
   shape << (a.ndim() == 1 ? ",)" : ")");
-  if (a.ndim() != 1 || a.shape(0) != dim)
+  const py::ssize_t hi = std::max(dim, dim_max);
+  if (a.ndim() != 1 || a.shape(0) < dim || a.shape(0) > hi)
     throw ConfigError("the action has shape " + shape.str() + ", expected (" + std::to_string(dim) +
-                      ",): " + names);
-  std::vector<double> v(a.data(), a.data() + dim);
+                      (hi > dim ? ",) or (" + std::to_string(hi) : std::string()) + ",): " + names);
+  std::vector<double> v(a.data(), a.data() + a.shape(0));
   for (double x : v)
     if (!std::isfinite(x)) throw ConfigError("the action holds a value that is not finite");
   return v;
@@ -227,9 +230,13 @@ class PyDrivingEnv {
     return py::make_tuple(observation(), info(nullptr));
   }
 
+  bool steers() { return env().world().free_lateral(); }
+
   py::tuple step(const py::handle& action) {
-    const std::vector<double> a = action_values(action, 2, "throttle, brake");
-    EnvStep s = env().step(Control{a[0], a[1]});
+    const bool free = steers();
+    const std::vector<double> a =
+        action_values(action, free ? 3 : 2, free ? "throttle, brake, steer" : "throttle, brake");
+    EnvStep s = env().step(Control{a[0], a[1], free ? a[2] : 0.0});
     return py::make_tuple(observation(), s.reward, s.terminated, s.truncated, info(&s));
   }
 
@@ -259,9 +266,12 @@ class PyDrivingEnv {
     info["route_length_m"] = e.task().route_length;
     if (e.has_suite()) info["episode"] = e.episode();
     info["seed"] = e.episode_seed();
-    if (e.running()) {
-      const Control c = e.expert_action();
-      info["expert_action"] = double_array({c.throttle, c.brake});
+    if (e.running()) info["expert_action"] = expert_action();
+    if (w.free_lateral()) {
+      const RoadContact& rc = w.road_contact();
+      info["lateral_error_m"] = rc.lateral_error;
+      info["heading_error"] = rc.heading_error;
+      info["steer_angle"] = w.steer_angle();
     }
     if (s && s->result.outcome == Outcome::Collision) info["collided_with"] = s->result.collided_with;
     if (!e.running()) {
@@ -296,7 +306,7 @@ class PyDrivingEnv {
   py::array_t<double> expert_action() {
     if (!env().running()) throw Error("expert_action(): no episode is running (call reset())");
     const Control c = env().expert_action();
-    return double_array({c.throttle, c.brake});
+    return steers() ? double_array({c.throttle, c.brake, c.steer}) : double_array({c.throttle, c.brake});
   }
 
  private:
@@ -349,7 +359,7 @@ class PyAgent {
       h.obs.command = obs.contains("command") ? obs["command"].cast<int>() : 0;
     }
     const Control c = agent_->act(h.obs);
-    return float_array({c.throttle, c.brake});
+    return float_array({c.throttle, c.brake, c.steer});
   }
   void reset() { agent_->begin_episode(); }
   const Agent& agent() const { return *agent_; }
@@ -384,9 +394,9 @@ class CallableAgent : public Agent {
     d["bev"] = frames;
     d["speed"] = float_array({obs.speed});
     d["command"] = obs.command;
-    const std::vector<double> a =
-        action_values(policy_(d), 2, "the policy must return (throttle, brake)");
-    return Control{a[0], a[1]};
+    const std::vector<double> a = action_values(
+        policy_(d), 2, "the policy must return (throttle, brake) or (throttle, brake, steer)", 3);
+    return Control{a[0], a[1], a.size() > 2 ? a[2] : 0.0};
   }
 
  private:
@@ -621,7 +631,8 @@ PYBIND11_MODULE(_core, m) {
       .def_property_readonly("traffic", [](PyDrivingEnv& e) { return e.env().settings().world.traffic; })
       .def_property_readonly("dt", [](PyDrivingEnv& e) { return e.env().settings().world.dt; })
       .def_property_readonly("cause_names", [](PyDrivingEnv&) { return cause_names(); })
-      .def_property_readonly("collision_penalty", [](PyDrivingEnv&) { return kCollisionPenalty; });
+      .def_property_readonly("collision_penalty", [](PyDrivingEnv&) { return kCollisionPenalty; })
+      .def_property_readonly("steers", &PyDrivingEnv::steers);
 
   py::class_<PyMujocoEnv>(m, "MujocoEnv")
       .def(py::init<const std::string&, const std::optional<std::string>&,

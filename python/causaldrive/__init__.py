@@ -43,7 +43,9 @@ class DrivingEnv:
 
     Observation: {"bev": uint8 (C, H, W) with values 0 or 255, "speed": float32 (1,) in m/s,
     "command": int (0 follow, 1 left, 2 right, 3 straight)}.
-    Action: float32 (2,): throttle and brake in [0, 1].
+    Action: float32 (2,): throttle and brake in [0, 1]; with ego.lateral = "free" (3,): steer
+    in [-1, 1] (positive to the left) follows, and info adds "lateral_error_m",
+    "heading_error" (to the lane centre) and "steer_angle" (rad of road wheel).
     Reward: metres of route progress in the step, minus collision_penalty (100) on a collision.
     Secondary: this is an imitation benchmark.
     terminated: success or collision; truncated: the task's timeout.
@@ -66,7 +68,11 @@ class DrivingEnv:
             "speed": Box(0.0, float("inf"), (1,), "float32"),
             "command": Discrete(4),
         })
-        self.action_space = Box(0.0, 1.0, (2,), "float32")
+        self.steers = self._env.steers  # ego.lateral = "free": the action gains steer
+        if self.steers:
+            self.action_space = Box([0.0, 0.0, -1.0], [1.0, 1.0, 1.0], (3,), "float32")
+        else:
+            self.action_space = Box(0.0, 1.0, (2,), "float32")
         self.channel_names = self._env.channel_names
         self.cause_names = self._env.cause_names
         self.dt = self._env.dt

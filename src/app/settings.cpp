@@ -44,6 +44,10 @@ void visit_settings(S& st, V&& v) {
   v.number("ego", "max_speed", st.ego.max_speed, 1, 80);
   v.number("ego", "rolling", st.ego.rolling, 0, 2);
   v.number("ego", "drag", st.ego.drag, 0, 0.1);
+  v.text("ego", "lateral", st.ego.lateral, {"route", "free"});
+  v.number("ego", "wheelbase", st.ego.wheelbase, 0.5, 10);
+  v.number("ego", "max_steer", st.ego.max_steer, 0.05, 1.2);
+  v.number("ego", "steer_rate", st.ego.steer_rate, 0.05, 20);
 
   v.integer("bev", "height", st.bev.height, 8, 1024);
   v.integer("bev", "width", st.bev.width, 8, 1024);
@@ -73,6 +77,7 @@ void visit_settings(S& st, V&& v) {
   v.number("collect.noise", "rate_per_s", st.collect.noise.rate_per_s, 0, 10);
   v.number("collect.noise", "min_s", st.collect.noise.min_s, 0.1, 60);
   v.number("collect.noise", "max_s", st.collect.noise.max_s, 0.1, 60);
+  v.number("collect.noise", "steer", st.collect.noise.steer, 0, 1);
 
   v.number("control", "kp", st.control.kp, 0, 100);
   v.number("control", "ki", st.control.ki, 0, 100);

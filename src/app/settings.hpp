@@ -24,6 +24,7 @@ struct NoiseSettings {
   double rate_per_s = 0.05;  // expected starts of a noise window per second
   double min_s = 0.5;        // window length range
   double max_s = 1.5;
+  double steer = 0.3;        // ego.lateral = "free": steer offset drawn in [-steer, steer]
 };
 
 struct CollectSettings {

@@ -91,7 +91,10 @@ nlohmann::json episode_to_json(const EpisodeResult& e) {
                       {"red_light_violations", e.red_light_violations},
                       {"light_passages", e.light_passages},
                       {"green_light_entries", e.green_light_entries},
-                      {"stop_go_events", ev}};
+                      {"stop_go_events", ev},
+                      {"wrong_way", e.wrong_way},
+                      {"lane_invasions", e.lane_invasions}};
+  if (e.lateral_error_m >= 0) j["lateral_error_m"] = e.lateral_error_m;
   if (!e.collided_with.empty()) j["collided_with"] = e.collided_with;
   if (!e.collision_kind.empty()) j["collision_kind"] = e.collision_kind;
   if (!e.collision_by.empty()) j["collision_by"] = e.collision_by;
@@ -120,6 +123,9 @@ EpisodeResult episode_from_json(const nlohmann::json& j) {
     e.collision_by = j.value("collision_by", "");
     e.failure = j.value("failure", "");
     e.agent = j.value("agent", nlohmann::json::object());
+    e.wrong_way = j.value("wrong_way", 0);
+    e.lane_invasions = j.value("lane_invasions", 0);
+    e.lateral_error_m = j.value("lateral_error_m", -1.0);
     for (const auto& s : j.at("stop_go_events")) {
       StopGoEvent ev;
       ev.time_s = s.at("time_s").get<double>();
@@ -147,7 +153,9 @@ std::optional<double> quantile(std::vector<double> v, double q) {
 nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
   long n = 0, failures = 0, success = 0, collision = 0, inertia = 0, timeout = 0, red = 0;
   long vehicle_hits = 0, pedestrian_hits = 0, ego_struck = 0;
-  long events = 0, stalls = 0, passages = 0, green = 0;
+  long events = 0, stalls = 0, passages = 0, green = 0, offroad = 0, wrong_way = 0, invasions = 0;
+  double lateral_sum = 0;
+  long lateral_n = 0;
   double km = 0, completion = 0, distance = 0, duration = 0;
   std::vector<double> delays;
   std::map<std::string, std::pair<double, long>> agent;  // numeric agent figures: sum, count
@@ -166,6 +174,13 @@ nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
     }
     inertia += e.outcome == "inertia";
     timeout += e.outcome == "timeout";
+    offroad += e.outcome == "offroad";
+    wrong_way += e.wrong_way;
+    invasions += e.lane_invasions;
+    if (e.lateral_error_m >= 0) {
+      lateral_sum += e.lateral_error_m;
+      ++lateral_n;
+    }
     red += e.red_light_violations;
     passages += e.light_passages;
     green += e.green_light_entries;
@@ -213,7 +228,15 @@ nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
                                             : nlohmann::json()},
           {"route_completion", n > 0 ? completion / n : 0.0},
           {"mean_speed", duration > 0 ? distance / duration : 0.0},
-          {"distance_km", km}};
+          {"distance_km", km},
+          // A free-steering ego (ego.lateral = "free"): leaving the road ends an episode
+          // (reported beside error = collision + inertia), wrong-way onsets and lane
+          // invasions per km, the episodes' mean |lateral error| (null in route mode).
+          {"offroad_rate", rate(offroad)},
+          {"wrong_way_per_km", km > 0 ? wrong_way / km : 0.0},
+          {"lane_invasions_per_km", km > 0 ? invasions / km : 0.0},
+          {"mean_lateral_error_m", lateral_n > 0 ? nlohmann::json(lateral_sum / lateral_n)
+                                                 : nlohmann::json()}};
   // The agent's own figures (dim/rip: how far the planner moves its plans), episode means.
   if (!agent.empty()) {
     nlohmann::json a = nlohmann::json::object();

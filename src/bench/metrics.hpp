@@ -58,7 +58,7 @@ struct EpisodeResult {
   int index = 0, task = 0, trial = 0;
   std::string scenario;
   uint64_t traffic_seed = 0;
-  std::string outcome;           // success | collision | inertia | timeout | infrastructure_failure
+  std::string outcome;           // success | collision | offroad | inertia | timeout | infrastructure_failure
   std::string collided_with;
   std::string collision_kind;    // collisions: "vehicle" or "pedestrian"
   std::string collision_by;      // collisions: "ego" (the ego struck) or "other" (it was struck)
@@ -69,6 +69,11 @@ struct EpisodeResult {
   int red_light_violations = 0;
   int light_passages = 0;        // junctions entered through a traffic light
   int green_light_entries = 0;   // of them, entered on green (SUMO 'G' or 'g')
+  // ego.lateral = "free": wrong-way onsets, lane invasions, mean |lateral error| to the lane
+  // centre (m; negative when the ego was never on a lane, and in route mode).
+  int wrong_way = 0;
+  int lane_invasions = 0;
+  double lateral_error_m = -1;
   std::vector<StopGoEvent> events;
   nlohmann::json agent = nlohmann::json::object();  // the agent's episode_figures()
 

@@ -146,8 +146,13 @@ EpisodeResult EpisodeScorer::finish(const World& world, const StepResult& last,
       r.collision_kind = last.collision_kind;
       r.collision_by = last.ego_struck ? "ego" : "other";
       break;
+    case Outcome::Offroad: r.outcome = "offroad"; break;
     default: r.outcome = is_inertia(stopped_, free_path_, dt_) ? "inertia" : "timeout";
   }
+  const WorldCounters& k = world.counters();
+  r.wrong_way = k.wrong_way;
+  r.lane_invasions = k.lane_invasions;
+  if (k.lateral_samples > 0) r.lateral_error_m = k.lateral_error_sum / k.lateral_samples;
   return r;
 }
 

@@ -1,5 +1,6 @@
 #include "collect/expert_episode.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 
@@ -46,7 +47,7 @@ void ExpertRecorder::begin(EpisodeData& d) const {
   d.channels = kBevChannelCount;
   d.height = bev.config().height;
   d.width = bev.config().width;
-  d.action_dim = 2;
+  d.action_dim = world_.free_lateral() ? 3 : 2;  // + steer when the ego steers
   for (const auto& name : cause_names()) d.causes[name];  // the series record_causes fills
 }
 
@@ -64,6 +65,7 @@ Control ExpertRecorder::record_step(EpisodeData& d) const {
   Control label = expert_.act(world_);
   d.action.insert(d.action.end(),
                   {static_cast<float>(label.throttle), static_cast<float>(label.brake)});
+  if (world_.free_lateral()) d.action.push_back(static_cast<float>(label.steer));
   return label;
 }
 
@@ -105,13 +107,18 @@ EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, Epi
         bool brake = noise_rng.uniform() < 0.5;
         double level = noise_rng.uniform(0.3, 1.0);
         noise_control = brake ? Control{0.0, level} : Control{level, 0.0};
+        // A steering ego also swerves: the expert's steer plus an offset held for the window.
+        noise_control.steer = world_.free_lateral() ? noise_rng.uniform(-ns.steer, ns.steer) : 0.0;
       }
       if (noise_left > 0) {
         executed = noise_control;
+        if (world_.free_lateral())
+          executed.steer = std::clamp(label.steer + noise_control.steer, -1.0, 1.0);
         noise_left -= settings_.world.dt;
       }
     }
-    d.noise.push_back(executed.throttle != label.throttle || executed.brake != label.brake);
+    d.noise.push_back(executed.throttle != label.throttle || executed.brake != label.brake ||
+                      executed.steer != label.steer);
     r = world_.step(executed);
   }
 
@@ -123,6 +130,7 @@ EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, Epi
   meta.metres_per_pixel = bev.config().metres_per_pixel;
   for (const auto& n : bev_channel_names()) meta.channels.push_back(n);
   meta.action_names = {"throttle", "brake"};
+  if (world_.free_lateral()) meta.action_names.push_back("steer");
   meta.outcome = outcome_name(r.outcome);
   std::string route;
   for (const auto& e : task.route) route += (route.empty() ? "" : " ") + e;

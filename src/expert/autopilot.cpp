@@ -69,7 +69,22 @@ Control Autopilot::act(const World& w) const {
   a = std::clamp(a, -model.settings().max_decel, model.settings().max_accel);
   Control c = model.control_for(a, v);
   if (p.speed < 0.05 && v < 0.3) c = {0.0, std::max(c.brake, 0.3)};  // hold while stopped
+  if (w.free_lateral()) c.steer = steer_towards_path(w);
   return c;
+}
+
+double steer_towards_path(const World& w) {
+  // Pure pursuit from the rear axle (the kinematic bicycle's yaw rate is v_rear tan(angle) / L)
+  // to the point of the route path a speed-dependent distance ahead of the front bumper.
+  const EgoSettings& e = w.ego_model().settings();
+  const double v = w.ego().speed;
+  const double ahead = std::clamp(1.0 + 0.3 * v, 1.5, 8.0);
+  const Vec2 target = to_ego_frame(w.ego().pose, w.path_point(ahead));
+  const double x = target.x + 0.5 * e.wheelbase, y = target.y;
+  const double d2 = x * x + y * y;
+  if (d2 < 1e-6) return 0.0;
+  const double angle = std::atan(2.0 * e.wheelbase * y / d2);  // 2 L sin(alpha) / d
+  return std::clamp(angle / e.max_steer, -1.0, 1.0);
 }
 
 }  // namespace cd

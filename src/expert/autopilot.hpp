@@ -15,7 +15,8 @@ class Autopilot {
   // pedestrian limits, each a braking profile that stops at the right place.
   double target_speed(const World& w) const;
 
-  // Throttle and brake that track the target speed under the ego's vehicle model.
+  // Throttle and brake that track the target speed under the ego's vehicle model, and with
+  // ego.lateral = "free" the steer of a path tracker along the route's lane plan.
   Control act(const World& w) const;
 
  private:
@@ -26,5 +27,9 @@ class Autopilot {
   Plan plan(const World& w) const;
   ExpertSettings s_;
 };
+
+// The steer in [-1, 1] that tracks the route path (pure pursuit from the rear axle): the
+// expert's, and that of agents which only learn a speed (cs) in ego.lateral = "free".
+double steer_towards_path(const World& w);
 
 }  // namespace cd

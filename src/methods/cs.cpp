@@ -1,7 +1,10 @@
 // cs (seed 000): constant speed along the route, blind to everything: the collision upper
-// bound of the benchmark (agent only).
+// bound of the benchmark (agent only). A free-steering ego (ego.lateral = "free") follows the
+// route with the expert's path tracker.
 #include "agents/agent.hpp"
 #include "control/pid.hpp"
+#include "expert/autopilot.hpp"
+#include "world/world.hpp"
 
 namespace cd {
 
@@ -9,26 +12,29 @@ namespace {
 
 class ConstantSpeedAgent : public Agent {
  public:
-  explicit ConstantSpeedAgent(const Settings& s)
-      : speed_(s.eval.cs_speed), pid_(s.control, EgoModel(s.ego), s.world.dt) {}
+  ConstantSpeedAgent(const Settings& s, const World* world)
+      : speed_(s.eval.cs_speed), pid_(s.control, EgoModel(s.ego), s.world.dt), world_(world) {}
   std::string name() const override { return "cs"; }
   bool uses_frames() const override { return false; }
   void begin_episode() override { pid_.reset(); }
   Control act(const Observation& obs) override {
-    return pid_.control(speed_, obs.speed);
+    Control c = pid_.control(speed_, obs.speed);
+    if (world_ && world_->free_lateral()) c.steer = steer_towards_path(*world_);
+    return c;
   }
   double last_target_speed() const override { return speed_; }
 
  private:
   double speed_;
   SpeedPid pid_;
+  const World* world_;  // the route's geometry for its path tracker (free lateral control)
 };
 
 }  // namespace
 
 std::unique_ptr<Agent> load_cs_agent(const std::string&, const std::string&,
-                                     const Settings& settings, const World*) {
-  return std::make_unique<ConstantSpeedAgent>(settings);
+                                     const Settings& settings, const World* world) {
+  return std::make_unique<ConstantSpeedAgent>(settings, world);
 }
 
 }  // namespace cd

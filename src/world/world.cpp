@@ -19,6 +19,10 @@ namespace cd {
 
 namespace {
 
+// m either side of the route path within which a free-steering ego's front still projects
+// onto it (its SUMO stand-in follows that projection).
+constexpr double kPathMatchWidth = 4.0;
+
 const std::string kEgo = "ego";
 const std::string kEgoType = "cd_ego";
 const std::string kEgoRoute = "cd_ego_route";
@@ -57,6 +61,7 @@ const char* outcome_name(Outcome o) {
     case Outcome::Success: return "success";
     case Outcome::Collision: return "collision";
     case Outcome::Timeout: return "timeout";
+    case Outcome::Offroad: return "offroad";
   }
   return "?";
 }
@@ -216,6 +221,8 @@ World::World(const WorldConfig& config)
   try {
     net_ = std::make_shared<const RoadNetwork>(read_road_network(net_path));
     renderer_ = std::make_unique<BevRenderer>(net_->map, config_.bev);
+    grid_ = std::make_unique<LaneGrid>(net_->map);
+    free_ = config_.ego.lateral == "free";
   } catch (...) {
     libsumo::Simulation::close();
     g_world_alive = false;
@@ -357,6 +364,9 @@ void World::reset(const Task& task) {
   ego_present_ = false;
   leader_held_ = false;
   ego_ = {};
+  steer_angle_ = 0;
+  free_pose_valid_ = false;
+  contact_ = {};
 
   sumo_call("cannot start traffic", [&] {
     libsumo::VehicleType::copy("DEFAULT_VEHTYPE", kEgoType);
@@ -382,6 +392,13 @@ void World::reset(const Task& task) {
   renderer_->set_route(route_lanes_);
   refresh();
   ego_.progress = 0;
+  if (free_) {
+    // From here on the bicycle model drives: it starts where SUMO inserted the ego.
+    free_pose_ = ego_.pose;
+    free_speed_ = ego_.speed;
+    free_pose_valid_ = true;
+    contact_ = cd::road_contact(net_->map, *grid_, ego_box());
+  }
 }
 
 bool World::add_background_car(const std::string& id) {
@@ -526,8 +543,24 @@ StepResult World::step(const Control& c) {
       if (contains(libsumo::Vehicle::getIDList(), kLeader)) libsumo::Vehicle::setSpeed(kLeader, -1);
     });
   }
+  if (free_) {
+    steer_angle_ = ego_model_.next_steer_angle(steer_angle_, c.steer, config_.world.dt);
+    free_pose_ = ego_model_.next_pose(free_pose_, v0, v1, steer_angle_, config_.world.dt);
+    free_speed_ = v1;
+  }
+  double sumo_speed = v1;
+  if (free_) {
+    // SUMO's ego stays on its route's lanes, where SUMO's drivers see it, and is moved to where
+    // the bicycle's front bumper projects onto the route path this step. (Placing it with
+    // moveToXY crashed SUMO 1.15 inside junctions.) Off the path it keeps the bicycle's speed.
+    const double h = free_pose_.heading;
+    const Vec2 front = free_pose_.pos + Vec2{std::cos(h), std::sin(h)} * (0.5 * config_.ego.length);
+    double s = 0;
+    if (path_.locate(front, kPathMatchWidth, &s))
+      sumo_speed = std::clamp(s / config_.world.dt, 0.0, config_.ego.max_speed);
+  }
   sumo_call("simulation step failed", [&] {
-    libsumo::Vehicle::setSpeed(kEgo, v1);
+    libsumo::Vehicle::setSpeed(kEgo, sumo_speed);
     advance();
     // The ego is part of its own context subscription: absent from it means gone.
     sumo_->nearby = libsumo::Vehicle::getContextSubscriptionResults(kEgo);
@@ -566,7 +599,10 @@ void World::advance() {
 
 StepResult World::check_events(bool present) {
   StepResult r;
+  // A free-steering ego's SUMO stand-in rides the lane centre: only our own test (below, on the
+  // bicycle's footprint) decides its collisions.
   for (const auto& col : libsumo::Simulation::getCollisions()) {
+    if (free_) break;
     if (col.collider == kEgo || col.victim == kEgo) {
       r.outcome = Outcome::Collision;
       r.collided_with = col.collider == kEgo ? col.victim : col.collider;
@@ -591,16 +627,29 @@ StepResult World::check_events(bool present) {
   counters_.distance += std::max(0.0, ego_.progress - prev_progress);
 
   if (r.outcome != Outcome::Collision) {
-    Box ego_box{ego_.pose.pos, ego_.pose.heading, config_.ego.length, config_.ego.width};
+    const Box eb = ego_box();
     for (const Actor& a : actors_) {
-      if (boxes_overlap(ego_box, a.box)) {
+      if (boxes_overlap(eb, a.box)) {
         r.outcome = Outcome::Collision;
         r.collided_with = a.id;
         r.collision_kind = a.pedestrian ? "pedestrian" : "vehicle";
-        r.ego_struck = a_strikes(ego_box, ego_.speed, a.box, a.speed);
+        r.ego_struck = a_strikes(eb, ego_.speed, a.box, a.speed);
         break;
       }
     }
+  }
+  if (free_) {
+    const bool was_wrong = contact_.wrong_way, was_invading = contact_.lane_invasion;
+    contact_ = cd::road_contact(net_->map, *grid_, ego_box());
+    r.wrong_way = contact_.wrong_way && !was_wrong;
+    r.lane_invasion = contact_.lane_invasion && !was_invading;
+    counters_.wrong_way += r.wrong_way;
+    counters_.lane_invasions += r.lane_invasion;
+    if (contact_.lane >= 0) {
+      counters_.lateral_error_sum += std::abs(contact_.lateral_error);
+      ++counters_.lateral_samples;
+    }
+    if (r.outcome == Outcome::Running && contact_.offroad) r.outcome = Outcome::Offroad;
   }
   r.entered_light = light_at_junction_entry(prev_lane, ego_.lane, crossed_state, crossed_distance);
   if (r.entered_light == kTlRed) {
@@ -622,10 +671,10 @@ void World::refresh() {
   Vec2 front = to_vec(libsumo::Vehicle::getPosition(kEgo));
   double angle = libsumo::Vehicle::getAngle(kEgo);
   Box eb = box_from_front(front, angle, config_.ego.length, config_.ego.width);
-  double new_speed = libsumo::Vehicle::getSpeed(kEgo);
+  double new_speed = free_pose_valid_ ? free_speed_ : libsumo::Vehicle::getSpeed(kEgo);
   ego_.accel = (new_speed - ego_.speed) / config_.world.dt;
   ego_.speed = new_speed;
-  ego_.pose = {eb.center, eb.heading};
+  ego_.pose = free_pose_valid_ ? free_pose_ : Pose2{eb.center, eb.heading};
   ego_.lane = libsumo::Vehicle::getLaneID(kEgo);
   ego_.lane_pos = libsumo::Vehicle::getLanePosition(kEgo);
   ego_.lane_speed_limit = libsumo::Lane::getMaxSpeed(ego_.lane);

@@ -13,6 +13,7 @@
 #include "sense/bev.hpp"
 #include "world/ego_model.hpp"
 #include "world/ground_truth.hpp"
+#include "world/lane_contact.hpp"
 #include "world/road_network.hpp"
 #include "world/route_path.hpp"
 #include "world/world_settings.hpp"
@@ -41,7 +42,7 @@ struct Task {
 // Scenario names of Task::scenario.
 const std::vector<std::string>& scenario_names();
 
-enum class Outcome { Running, Success, Collision, Timeout };
+enum class Outcome { Running, Success, Collision, Timeout, Offroad };
 const char* outcome_name(Outcome o);
 
 struct EgoState {
@@ -64,11 +65,21 @@ struct StepResult {
   // The light (TlCode) of the light-controlled junction this step entered, kTlNone when it
   // entered none (light_at_junction_entry, world/ground_truth.hpp).
   int entered_light = kTlNone;
+  // ego.lateral = "free": this step began driving against its lane's direction / crossed the
+  // border of its lane (onsets, world/lane_contact.hpp).
+  bool wrong_way = false;
+  bool lane_invasion = false;
 };
 
 struct WorldCounters {
   int red_light_violations = 0;
   double distance = 0;  // m driven
+  // ego.lateral = "free": onsets of wrong-way driving and lane invasions, and the sum of the
+  // absolute lateral error to the lane centre over `lateral_samples` steps on a lane.
+  int wrong_way = 0;
+  int lane_invasions = 0;
+  double lateral_error_sum = 0;
+  long lateral_samples = 0;
 };
 
 class World {
@@ -112,6 +123,10 @@ class World {
   const RoadMap& map() const { return net_->map; }
   const WorldConfig& settings() const { return config_; }
   const EgoModel& ego_model() const { return ego_model_; }
+  bool free_lateral() const { return free_; }
+  double steer_angle() const { return steer_angle_; }  // rad of road wheel (free)
+  // Where the ego's footprint lies among the lanes (free; in route mode: on its lane).
+  const RoadContact& road_contact() const { return contact_; }
   const BevRenderer& renderer() const { return *renderer_; }
   const std::string& network_path() const { return net_->path; }
   double time() const { return ego_.time; }
@@ -144,9 +159,19 @@ class World {
   bool junction_lane_blocked(const std::string& lane, bool minor);
   StepResult check_events(bool ego_present);
   std::vector<std::string> route_lane_sequence() const;
+  Box ego_box() const {
+    return {ego_.pose.pos, ego_.pose.heading, config_.ego.length, config_.ego.width};
+  }
 
   WorldConfig config_;
   EgoModel ego_model_;
+  bool free_ = false;
+  std::unique_ptr<LaneGrid> grid_;
+  double steer_angle_ = 0;
+  bool free_pose_valid_ = false;  // free: ego_.pose and speed are ours, not read from SUMO
+  Pose2 free_pose_;
+  double free_speed_ = 0;
+  RoadContact contact_;
   std::shared_ptr<const RoadNetwork> net_;
   std::unique_ptr<BevRenderer> renderer_;
   std::unique_ptr<Sumo> sumo_;
