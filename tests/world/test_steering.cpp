@@ -1,0 +1,179 @@
+// A free-steering ego (ego.lateral = "free", issue 13): the kinematic bicycle against an
+// independent fine integration of its equations and hand-computed poses, the lane contact
+// events on a hand-made road, and the steering expert in closed loop on every built-in town and
+// on a random network generated here.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "../support/test_support.hpp"
+#include "app/settings.hpp"
+#include "expert/autopilot.hpp"
+#include "world/ego_model.hpp"
+#include "world/lane_contact.hpp"
+#include "world/world.hpp"
+
+namespace cd {
+namespace {
+
+EgoSettings bicycle() {
+  EgoSettings e;
+  e.wheelbase = 2.7;
+  e.max_steer = 0.6;
+  e.steer_rate = 1.0;
+  return e;
+}
+
+TEST(Bicycle, StraightStepsMoveAlongTheHeading) {
+  const EgoModel m(bicycle());
+  const Pose2 p = m.next_pose({{10, 20}, M_PI / 6}, 8.0, 12.0, 0.0, 0.1);  // mean speed 10
+  EXPECT_NEAR(p.pos.x, 10 + std::cos(M_PI / 6), 1e-12);
+  EXPECT_NEAR(p.pos.y, 20 + std::sin(M_PI / 6), 1e-12);
+  EXPECT_DOUBLE_EQ(p.heading, M_PI / 6);
+}
+
+TEST(Bicycle, ArcsAgreeWithAFineIntegrationAndTheHandComputedCircle) {
+  const EgoModel m(bicycle());
+  const double angle = 0.3, v = 5.0, dt = 0.1;
+  // Hand computation: slip angle beta = atan(tan(0.3) / 2) = atan(0.154668) = 0.153452, the
+  // centre circles with radius R = (L / 2) / sin(beta) = 1.35 / 0.152851 = 8.8321 m at yaw rate
+  // v / R.
+  const double beta = std::atan(std::tan(angle) / 2), radius = 1.35 / std::sin(beta);
+  EXPECT_NEAR(beta, 0.153452, 1e-6);
+  EXPECT_NEAR(radius, 8.8321, 1e-3);
+  Pose2 p{{0, 0}, 0}, q = p;
+  for (int k = 0; k < 40; ++k) {
+    p = m.next_pose(p, v, v, angle, dt);
+    // The ODE x' = v cos(h + beta), y' = v sin(h + beta), h' = v sin(beta) / (L / 2), in steps
+    // of 1e-5 s (midpoint rule).
+    for (int i = 0; i < 10000; ++i) {
+      const double h = 1e-5, mid = q.heading + 0.5 * h * v * std::sin(beta) / 1.35;
+      q.pos = q.pos + Vec2{std::cos(mid + beta), std::sin(mid + beta)} * (v * h);
+      q.heading += h * v * std::sin(beta) / 1.35;
+    }
+    EXPECT_NEAR(p.pos.x, q.pos.x, 1e-6);
+    EXPECT_NEAR(p.pos.y, q.pos.y, 1e-6);
+    EXPECT_NEAR(p.heading, q.heading, 1e-9);
+  }
+  // After 4 s the heading turned v t / R, and the centre stays on its circle around
+  // (-R sin(beta), R cos(beta)).
+  EXPECT_NEAR(p.heading, v * 4.0 / radius, 1e-9);
+  const Vec2 c{-radius * std::sin(beta), radius * std::cos(beta)};
+  EXPECT_NEAR((p.pos - c).norm(), radius, 1e-9);
+}
+
+TEST(Bicycle, SteeringAngleIsRateLimitedAndBounded) {
+  const EgoModel m(bicycle());
+  EXPECT_NEAR(m.next_steer_angle(0.0, 1.0, 0.1), 0.1, 1e-12);    // 1 rad/s for 0.1 s
+  EXPECT_NEAR(m.next_steer_angle(0.55, 1.0, 0.1), 0.6, 1e-12);   // up to max_steer
+  EXPECT_NEAR(m.next_steer_angle(0.0, -0.05, 0.1), -0.03, 1e-12);  // reaches a near target
+  EXPECT_NEAR(m.next_steer_angle(0.0, 5.0, 10.0), 0.6, 1e-12);   // steer clamped to [-1, 1]
+}
+
+// A two-way road along x (an eastbound lane below y = 0, a westbound one above), and a
+// junction lane continuing the eastbound one beyond x = 100.
+RoadMap two_way_road() {
+  RoadMap map;
+  auto lane = [&](const std::string& id, const std::string& edge, Polyline shape, bool internal) {
+    LaneGeom g;
+    g.id = id;
+    g.edge = edge;
+    g.internal = internal;
+    g.width = 3.2;
+    g.shape = shape;
+    g.length = polyline_length(shape);
+    map.add(g);
+  };
+  lane("east_0", "east", {{0, -1.6}, {100, -1.6}}, false);
+  lane("west_0", "west", {{100, 1.6}, {0, 1.6}}, false);
+  lane(":j_0_0", ":j_0", {{100, -1.6}, {110, -1.6}}, true);
+  return map;
+}
+
+TEST(LaneContact, OnLaneOffsetWrongWayOffRoadAndJunction) {
+  const RoadMap map = two_way_road();
+  const LaneGrid grid(map);
+  auto contact = [&](Vec2 c, double heading) {
+    return road_contact(map, grid, Box{c, heading, 4.5, 1.8});
+  };
+  RoadContact rc = contact({50, -1.6}, 0.0);  // centred on its lane
+  EXPECT_EQ(map.lanes[rc.lane].id, "east_0");
+  EXPECT_FALSE(rc.offroad || rc.wrong_way || rc.lane_invasion);
+  EXPECT_NEAR(rc.lateral_error, 0.0, 1e-12);
+  rc = contact({50, -1.3}, 0.2);  // 0.3 m left, turned 0.2 rad: the left front corner is at
+  // y = -1.3 + 2.25 sin(0.2) + 0.9 cos(0.2) = 0.028 > 0, over the centre line
+  EXPECT_NEAR(rc.lateral_error, 0.3, 1e-12);
+  EXPECT_NEAR(rc.heading_error, 0.2, 1e-12);
+  EXPECT_TRUE(rc.lane_invasion);
+  EXPECT_FALSE(rc.wrong_way);
+  rc = contact({50, -1.6}, 0.1);  // turned less: its corners stay within the lane (|y| < 3.2)
+  EXPECT_FALSE(rc.lane_invasion);
+  rc = contact({50, 1.6}, 0.0);  // on the westbound lane, heading east
+  EXPECT_TRUE(rc.wrong_way);
+  EXPECT_FALSE(rc.offroad);
+  rc = contact({50, 1.6}, M_PI);  // the same place heading west: its own lane
+  EXPECT_FALSE(rc.wrong_way);
+  EXPECT_EQ(map.lanes[rc.lane].id, "west_0");
+  rc = contact({50, -2.8}, 0.0);  // its right side beyond the road's edge (y < -3.2)
+  EXPECT_FALSE(rc.offroad);
+  EXPECT_TRUE(rc.lane_invasion);
+  EXPECT_NEAR(rc.lateral_error, -1.2, 1e-12);
+  rc = contact({50, -3.8}, 0.0);  // the centre off the road, the left corners still on it
+  EXPECT_FALSE(rc.offroad);
+  EXPECT_EQ(rc.lane, -1);
+  rc = contact({50, -6.0}, 0.0);  // every point beyond the lane's surface
+  EXPECT_TRUE(rc.offroad);
+  EXPECT_EQ(rc.lane, -1);
+  rc = contact({99, -1.6}, 0.0);  // front half in the junction: no invasion
+  EXPECT_FALSE(rc.lane_invasion);
+  EXPECT_FALSE(rc.offroad);
+  rc = contact({300, 0}, 0.0);  // outside the map
+  EXPECT_TRUE(rc.offroad);
+}
+
+// The expert with the wheel drives a sampled task of `town` to its goal, on the road.
+void expert_drives(const std::string& town, uint64_t seed) {
+  test::TempDir dir("cdtest-steer");
+  Settings s = load_settings(test::write_test_config(dir, "empty"));
+  s.world.town = town;
+  s.ego.lateral = "free";
+  World w(s);
+  const Autopilot expert(s.expert);
+  const Task task = w.sample_task(seed, 150, 400);
+  w.reset(task);
+  StepResult r;
+  double worst = 0, turned = 0, last = w.ego().pose.heading;
+  while (r.outcome == Outcome::Running) {
+    const Control c = expert.act(w);
+    r = w.step(c);
+    worst = std::max(worst, std::abs(w.road_contact().lateral_error));
+    turned += std::abs(wrap_angle(w.ego().pose.heading - last));
+    last = w.ego().pose.heading;
+  }
+  EXPECT_EQ(outcome_name(r.outcome), std::string("success")) << town << " seed " << seed;
+  EXPECT_EQ(w.counters().wrong_way, 0) << town;
+  EXPECT_LT(worst, 1.6) << town << ": the centre left its lane";
+  EXPECT_LT(w.counters().lateral_error_sum / std::max<long>(1, w.counters().lateral_samples), 0.3)
+      << town;
+  (void)turned;
+}
+
+TEST(SteeringExpert, DrivesEveryBuiltInTown) {
+  for (const std::string& town : {"town-a", "town-b", "town-c"})
+    for (uint64_t seed : {1, 2}) expert_drives(town, seed);
+}
+
+TEST(SteeringExpert, DrivesARandomNetworkItHasNeverSeen) {
+  test::TempDir dir("cdtest-steer-net");
+  const std::string net = dir / "random.net.xml";
+  const test::CommandResult r = test::run_command(
+      {"/usr/bin/netgenerate", "--rand", "--rand.iterations", "40", "--rand.min-distance", "70",
+       "--rand.max-distance", "140", "--rand.min-angle", "50", "--seed", "17",
+       "--default.lanenumber", "1", "--tls.guess", "--no-turnarounds", "true", "-o", net});
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  for (uint64_t seed : {3, 4, 5}) expert_drives(net, seed);
+}
+
+}  // namespace
+}  // namespace cd
