@@ -378,6 +378,7 @@ class CallableAgent : public Agent {
   std::string name() const override { return label_; }
   int history() const override { return history_; }
   int history_stride() const override { return stride_; }
+  bool steers() const override { return true; }  // it may return (throttle, brake, steer)
   void begin_episode() override {
     if (py::hasattr(policy_, "reset") && !py::isinstance<py::function>(policy_))
       policy_.attr("reset")();

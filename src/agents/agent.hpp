@@ -40,6 +40,9 @@ class Agent {
   virtual int history_stride() const { return 1; }  // simulation steps between them
   virtual bool uses_frames() const { return true; }  // false: the runner renders nothing
   virtual double goal_distance() const { return 0; }  // > 0: fill Observation::goal_x/y
+  // Does act() steer (Control::steer)? An agent that does not cannot drive a free-steering ego
+  // (ego.lateral = "free"); make_agent refuses it there.
+  virtual bool steers() const { return false; }
   virtual void begin_episode() {}
   // The control for this step, from the observation alone (the expert was given its World
   // when it was built: it is the only privileged agent).

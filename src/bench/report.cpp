@@ -215,6 +215,16 @@ const std::vector<MetricSet>& metric_sets() {
         {"time_limit_rate", "timeout %", 100.0},
         {"inertia_rate", "inertia %", 100.0}},
        true},
+      {"lateral",
+       "Lateral control (a free-steering ego, ego.lateral = \"free\"; off-road ends an episode "
+       "and is reported beside error = collision + inertia; mean \u00b1 sd over seeds)",
+       {{"offroad_rate", "off-road %", 100.0},
+        {"error_rate", "error %", 100.0},
+        {"wrong_way_per_km", "wrong way / km", 1.0, 2},
+        {"lane_invasions_per_km", "lane invasions / km", 1.0, 2},
+        {"mean_lateral_error_m", "lateral error m", 1.0, 2}},
+       false,
+       false},
       {"return",
        "MuJoCo-Image (eval --env): return per episode and the copycat R\u00b2 of a_t from "
        "a_{t-1}, policy vs its expert's data (mean \u00b1 sd over seeds)",

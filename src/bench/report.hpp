@@ -51,7 +51,7 @@ struct Metric {
 
 // A named group of metrics, one table each.
 struct MetricSet {
-  std::string name;   // error | outcomes | stopgo | lights | failure
+  std::string name;   // error | outcomes | stopgo | lights | failure | lateral | return
   std::string title;  // the line printed above its table
   std::vector<Metric> metrics;
   bool by_condition = false;  // one table per failure condition (failure_conditions())

@@ -142,7 +142,6 @@ void add_episode(EpisodeSet& set, const std::string& path, bool keep_full_path) 
           "'; a data folder must hold one env");
     }
     channels = m.channels, height = m.height, width = m.width, action_dim = m.action_dim;
-    if (first) set.action_dim = action_dim;
     p = keep_bytes(path, m);
   } else {
     EpisodeMeta meta;
@@ -155,8 +154,12 @@ void add_episode(EpisodeSet& set, const std::string& path, bool keep_full_path) 
     if (d.channels > kMaxPackedChannels)
       bad("has " + std::to_string(d.channels) + " BEV channels; training supports at most " +
           std::to_string(kMaxPackedChannels));
-    if (d.action_dim != 2) bad("actions should be (throttle, brake), found " +
-                               std::to_string(d.action_dim) + " columns");
+    // (throttle, brake), and steer after them when the ego steered (ego.lateral = "free").
+    if (d.action_dim != 2 && d.action_dim != 3)
+      bad("actions should be (throttle, brake) or (throttle, brake, steer), found " +
+          std::to_string(d.action_dim) + " columns");
+    if (d.action_dim == 3 && meta.action_names.size() == 3 && meta.action_names[2] != "steer")
+      bad("its third action column is '" + meta.action_names[2] + "', not steer");
     for (float v : d.speed)
       if (!std::isfinite(v)) bad("speed holds a non-finite value");
     for (float v : d.action)
@@ -173,6 +176,7 @@ void add_episode(EpisodeSet& set, const std::string& path, bool keep_full_path) 
     set.channels = channels;
     set.height = height;
     set.width = width;
+    set.action_dim = action_dim;
   } else if (channels != set.channels || height != set.height || width != set.width) {
     bad("frames are " + std::to_string(channels) + "x" + std::to_string(height) + "x" +
         std::to_string(width) + " but " + set.episodes.front().file + " has " +

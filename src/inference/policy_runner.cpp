@@ -132,6 +132,7 @@ PolicyStep PolicyRunner::Impl::step(torch::Tensor a, bool target_speed_head) {
   } else if (ck.input.domain != kMujocoDomain) {  // MuJoCo: last_action() is the action
     s.throttle = std::clamp(v[0], 0.0f, 1.0f);
     s.brake = std::clamp(v[1], 0.0f, 1.0f);
+    if (a.size(1) >= 3) s.steer = std::clamp(v[2], -1.0f, 1.0f);
   }
   return s;
 }

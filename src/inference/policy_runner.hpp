@@ -15,6 +15,7 @@ namespace cd {
 struct PolicyStep {
   double throttle = 0, brake = 0;  // throttle_brake head, in [0,1] (driving only; MuJoCo's
                                    // action is PolicyRunner::last_action())
+  double steer = 0;                // its third output, in [-1,1], when trained with steer
   double target_speed = std::numeric_limits<double>::quiet_NaN();  // target_speed head, m/s
   // The head's output as one number: throttle - brake, or the target speed.
   double scalar() const { return target_speed == target_speed ? target_speed : throttle - brake; }

@@ -23,6 +23,7 @@ class ConstantSpeedAgent : public Agent {
     return c;
   }
   double last_target_speed() const override { return speed_; }
+  bool steers() const override { return true; }  // with the expert's path tracker
 
  private:
   double speed_;

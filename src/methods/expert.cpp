@@ -15,6 +15,7 @@ class ExpertAgent : public Agent {
   ExpertAgent(const Settings& s, const World* world) : expert_(s.expert), world_(world) {}
   std::string name() const override { return "expert"; }
   bool uses_frames() const override { return false; }
+  bool steers() const override { return true; }
   Control act(const Observation&) override {
     if (!world_) throw Error("the expert agent was built without a World to drive in");
     return expert_.act(*world_);

@@ -303,6 +303,13 @@ class FamilyAgent : public Agent {
     if (in.domain != "driving")
       throw ConfigError("checkpoint " + dir + " was trained on MuJoCo-Image data ('" + in.env +
                         "'): evaluate it with `causaldrive eval --env " + in.env + "`");
+    steers_ = in.action_dim >= 3 && !runner_.target_speed_head();
+    if (s.ego.lateral == "free" && !steers_)
+      throw ConfigError("checkpoint " + dir + " was trained without steer (" +
+                        (runner_.target_speed_head() ? std::string("a target-speed head")
+                                                     : std::string("throttle and brake")) +
+                        "): it cannot drive with ego.lateral = \"free\"; use \"route\" or train "
+                        "on data collected with ego.lateral = \"free\"");
   }
 
   std::string name() const override { return method_; }
@@ -317,19 +324,21 @@ class FamilyAgent : public Agent {
   Control act(const Observation& obs) override {
     const InputFormat& in = runner_.checkpoint().input;
     check_observation(method_, obs, in.channels, in.height, in.width, in.history);
-    const float prev[2] = {static_cast<float>(previous_.throttle),
-                           static_cast<float>(previous_.brake)};
+    const float prev[3] = {static_cast<float>(previous_.throttle),
+                           static_cast<float>(previous_.brake),
+                           static_cast<float>(previous_.steer)};
     PolicyStep step = runner_.run(obs.frames.data(), obs.speed, obs.command, prev);
     if (runner_.target_speed_head()) {
       target_ = step.target_speed;
       previous_ = pid_.control(target_, obs.speed);
     } else {
-      previous_ = Control{step.throttle, step.brake};
+      previous_ = Control{step.throttle, step.brake, steers_ ? step.steer : 0.0};
     }
     return previous_;
   }
 
   double last_target_speed() const override { return target_; }
+  bool steers() const override { return steers_; }
 
  private:
   std::string method_;
@@ -337,6 +346,7 @@ class FamilyAgent : public Agent {
   SpeedPid pid_;
   double target_ = std::nan("");
   Control previous_{0.0, 1.0};
+  bool steers_ = false;  // trained on (throttle, brake, steer): data of a free-steering ego
 };
 
 }  // namespace

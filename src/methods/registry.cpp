@@ -148,7 +148,11 @@ std::unique_ptr<Agent> make_agent(const std::string& name, const std::string& ru
   if (m.train && run_dir.empty())
     throw ConfigError("agent '" + name + "' needs --checkpoint DIR (the output of "
                       "`causaldrive train --method " + name + "`)");
-  return m.agent(name, run_dir, settings, world);
+  std::unique_ptr<Agent> agent = m.agent(name, run_dir, settings, world);
+  if (settings.ego.lateral == "free" && !agent->steers())
+    throw ConfigError("agent '" + name + "' does not steer: it cannot drive with ego.lateral = "
+                      "\"free\" yet; use \"route\"");
+  return agent;
 }
 
 }  // namespace cd

@@ -145,14 +145,18 @@ TEST(Collect, WritesEpisodesWithTheDatasetLayout) {
   EXPECT_EQ(manifest["settings"]["collect"]["out"], out);
 }
 
-TEST(Collect, IsDeterministicAndSeedDependent) {
+// A free-steering ego (issue 13): the config's extra table, and what its data must hold.
+const char* kFreeSteering = "\n[ego]\nlateral = \"free\"\n";
+
+void expect_deterministic_and_seed_dependent(const std::string& extra,
+                                             const std::vector<std::string>& more) {
   TempDir dir("cdtest-collect");
-  const std::string config = test::write_test_config(dir, "regular");
+  const std::string config = test::write_test_config(dir, "regular", extra);
   const std::string a = dir / "a", b = dir / "b", c = dir / "c", d = dir / "d";
-  CommandResult ra = collect_cli(config, a, 2, 2);
-  CommandResult rb = collect_cli(config, b, 2, 2);
-  CommandResult rc = collect_cli(config, c, 2, 1);  // the worker count changes nothing
-  CommandResult rd = collect_cli(config, d, 2, 2, {"--seed", "7"});
+  CommandResult ra = collect_cli(config, a, 2, 2, more);
+  CommandResult rb = collect_cli(config, b, 2, 2, more);
+  CommandResult rc = collect_cli(config, c, 2, 1, more);  // the worker count changes nothing
+  CommandResult rd = collect_cli(config, d, 2, 2, test::with({"--seed", "7"}, more));
   for (const CommandResult* r : {&ra, &rb, &rc, &rd})
     ASSERT_TRUE(r->exited && r->exit_code == 0) << r->describe();
   for (int i = 0; i < 2; ++i) {
@@ -168,11 +172,28 @@ TEST(Collect, IsDeterministicAndSeedDependent) {
   };
   EXPECT_EQ(episodes(a), episodes(b));
   EXPECT_NE(episodes(a), episodes(d));
+  EpisodeMeta meta;
+  const EpisodeData first = read_episode(a + "/" + episode_file_name(0), &meta);
+  const bool free = extra == kFreeSteering;
+  EXPECT_EQ(first.action_dim, free ? 3 : 2);
+  EXPECT_EQ(meta.action_names.size(), static_cast<size_t>(first.action_dim));
+  if (free) {
+    EXPECT_EQ(meta.action_names.back(), "steer");
+    double most = 0;
+    for (size_t t = 0; t < first.frames(); ++t) most = std::max(most, std::abs(double(first.action[t * 3 + 2])));
+    EXPECT_GT(most, 0.05) << "the expert never steered";
+  }
 }
 
-TEST(Collect, ResumesAfterTheProcessGroupWasKilled) {
+TEST(Collect, IsDeterministicAndSeedDependent) { expect_deterministic_and_seed_dependent("", {}); }
+
+TEST(CollectSteering, IsDeterministicAndSeedDependentWithSteerNoise) {
+  expect_deterministic_and_seed_dependent(kFreeSteering, {"--noise"});
+}
+
+void expect_resume_after_kill(const std::string& extra) {
   TempDir dir("cdtest-collect");
-  const std::string config = test::write_test_config(dir, "regular");
+  const std::string config = test::write_test_config(dir, "regular", extra);
   const int kEpisodes = 6;
   const std::string out = dir / "data", ref = dir / "ref";
   const std::vector<std::string> argv = {CD_BINARY, "collect", "--config", config,
@@ -220,6 +241,12 @@ TEST(Collect, ResumesAfterTheProcessGroupWasKilled) {
   EXPECT_NE(again.out.find("recorded now: 0"), std::string::npos) << again.out;
   EXPECT_EQ(episode_files(out).size(), static_cast<size_t>(kEpisodes));
   EXPECT_TRUE(test::read_text(out + "/" + episode_file_name(0)) == before);
+}
+
+TEST(Collect, ResumesAfterTheProcessGroupWasKilled) { expect_resume_after_kill(""); }
+
+TEST(CollectSteering, ResumesAfterTheProcessGroupWasKilled) {
+  expect_resume_after_kill(kFreeSteering);
 }
 
 TEST(Collect, DamagedEpisodeFileIsRecordedAgain) {

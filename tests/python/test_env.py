@@ -90,6 +90,35 @@ class DrivingEnvTest(TempDirCase):
         finally:
             env.close()
 
+    def test_free_steering(self):
+        """ego.lateral = "free": the action gains steer, the expert's steer keeps the lane, and a
+        hard right turn leaves the road (the episode ends as offroad)."""
+        free = dict(FAST, **{"world.traffic": "empty", "ego.lateral": "free"})
+        with causaldrive.make("town-a", settings=free) as env:
+            self.assertTrue(env.steers)
+            self.assertEqual(env.action_space.shape, (3,))
+            np.testing.assert_array_equal(env.action_space.low, [0, 0, -1])
+            obs, info = env.reset(seed=3)
+            self.assertEqual(info["expert_action"].shape, (3,))
+            worst = 0.0
+            while True:
+                obs, _, terminated, truncated, info = env.step(info["expert_action"])
+                worst = max(worst, abs(info["lateral_error_m"]))
+                if terminated or truncated:
+                    break
+            self.assertEqual(info["outcome"], "success")
+            self.assertLess(worst, 1.6)
+            self.assertGreaterEqual(info["episode_record"]["lateral_error_m"], 0.0)
+            obs, info = env.reset(seed=3)
+            for _ in range(400):
+                obs, _, terminated, truncated, info = env.step([0.6, 0.0, -1.0])
+                if terminated or truncated:
+                    break
+            self.assertEqual(info["outcome"], "offroad")
+            with self.assertRaises(ValueError):
+                env.reset(seed=3)
+                env.step([0.5, 0.0])  # two values where three are needed
+
     def test_suite_walk_and_seeds(self):
         with causaldrive.make("quickstart", settings={"eval.trials": 2, "world.warmup_s": 5.0}) as env:
             self.assertEqual(env.episodes, 8)
