@@ -582,6 +582,10 @@ py::dict load_episode(const std::string& path) {
     out["pose"] = owning_array<float>(std::move(d.pose), {t, 3});
     if (d.noise.empty()) d.noise.assign(d.frames(), 0);
     out["noise"] = owning_array<uint8_t>(std::move(d.noise), {t});
+    // A free-steering ego's lane errors and the lateral augmentation, when the file has them.
+    if (!d.lateral_error.empty()) out["lateral_error"] = owning_array<float>(std::move(d.lateral_error), {t});
+    if (!d.heading_error.empty()) out["heading_error"] = owning_array<float>(std::move(d.heading_error), {t});
+    if (!d.augment.empty()) out["augment"] = owning_array<float>(std::move(d.augment), {t, 2});
     py::dict causes;
     for (auto& [name, series] : d.causes) causes[name.c_str()] = owning_array<float>(std::move(series), {t});
     out["causes"] = causes;

@@ -78,6 +78,9 @@ void visit_settings(S& st, V&& v) {
   v.number("collect.noise", "min_s", st.collect.noise.min_s, 0.1, 60);
   v.number("collect.noise", "max_s", st.collect.noise.max_s, 0.1, 60);
   v.number("collect.noise", "steer", st.collect.noise.steer, 0, 1);
+  v.number("collect.augment", "fraction", st.collect.augment.fraction, 0, 1);
+  v.number("collect.augment", "shift_m", st.collect.augment.shift_m, 0, 5);
+  v.number("collect.augment", "rotate_rad", st.collect.augment.rotate_rad, 0, 1);
 
   v.number("control", "kp", st.control.kp, 0, 100);
   v.number("control", "ki", st.control.ki, 0, 100);

@@ -27,6 +27,16 @@ struct NoiseSettings {
   double steer = 0.3;        // ego.lateral = "free": steer offset drawn in [-steer, steer]
 };
 
+// The lateral augmentation of a free-steering ego's data (the seeds' multi-camera augmentation):
+// a fraction of the frames rendered from the ego's pose shifted sideways by up to shift_m and
+// rotated by up to rotate_rad (uniform), labelled with the steer that corrects it (the expert's
+// path tracker from that pose); throttle and brake stay the expert's.
+struct AugmentSettings {
+  double fraction = 0;       // 0: off
+  double shift_m = 1.0;
+  double rotate_rad = 0.15;
+};
+
 struct CollectSettings {
   int episodes = 24;
   uint64_t seed = 0;
@@ -36,6 +46,7 @@ struct CollectSettings {
   double max_route_m = 700;
   double max_episode_s = 0;  // 0: the benchmark timeout (route at 5 km/h + 20 s)
   NoiseSettings noise;
+  AugmentSettings augment;
 };
 
 struct TrainSettings {

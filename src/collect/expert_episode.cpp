@@ -51,10 +51,36 @@ void ExpertRecorder::begin(EpisodeData& d) const {
   for (const auto& name : cause_names()) d.causes[name];  // the series record_causes fills
 }
 
-Control ExpertRecorder::record_step(EpisodeData& d) const {
+Control ExpertRecorder::record_step(EpisodeData& d, Rng* augment) const {
   size_t at = d.bev_packed.size();
   d.bev_packed.resize(at + d.frame_pixels());
-  world_.render_packed(d.bev_packed.data() + at);
+  // The lateral augmentation: this frame from a shifted, rotated pose, with the steer that
+  // corrects it as the label.
+  const AugmentSettings& aug = settings_.collect.augment;
+  double shift = 0, turn = 0;
+  bool augmented = false;
+  if (augment && world_.free_lateral()) {
+    augmented = augment->uniform() < aug.fraction;
+    if (augmented) {
+      shift = augment->uniform(-aug.shift_m, aug.shift_m);
+      turn = augment->uniform(-aug.rotate_rad, aug.rotate_rad);
+    }
+    d.augment.insert(d.augment.end(), {static_cast<float>(shift), static_cast<float>(turn)});
+  }
+  Pose2 seen = world_.ego().pose;
+  if (augmented) {
+    seen.pos = seen.pos + Vec2{-std::sin(seen.heading), std::cos(seen.heading)} * shift;
+    seen.heading += turn;
+    BevScene scene = world_.scene();
+    scene.ego = seen;
+    world_.renderer().render_packed(scene, d.bev_packed.data() + at);
+  } else {
+    world_.render_packed(d.bev_packed.data() + at);
+  }
+  if (world_.free_lateral()) {
+    d.lateral_error.push_back(static_cast<float>(world_.road_contact().lateral_error));
+    d.heading_error.push_back(static_cast<float>(world_.road_contact().heading_error));
+  }
   const EgoState& ego = world_.ego();
   d.speed.push_back(static_cast<float>(ego.speed));
   d.command.push_back(world_.command());
@@ -65,8 +91,9 @@ Control ExpertRecorder::record_step(EpisodeData& d) const {
   Control label = expert_.act(world_);
   d.action.insert(d.action.end(),
                   {static_cast<float>(label.throttle), static_cast<float>(label.brake)});
-  if (world_.free_lateral()) d.action.push_back(static_cast<float>(label.steer));
-  return label;
+  if (world_.free_lateral())
+    d.action.push_back(static_cast<float>(augmented ? steer_towards_path(world_, seen) : label.steer));
+  return label;  // what the ego executes: the expert's own steer, never the augmented label
 }
 
 EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, EpisodeMeta& meta,
@@ -87,9 +114,11 @@ EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, Epi
   Control noise_control;
   if (!png_dir.empty()) std::filesystem::create_directories(png_dir);
 
+  Rng augment_rng(derive_seed(seed, 3));
+  Rng* augment = settings_.collect.augment.fraction > 0 ? &augment_rng : nullptr;
   StepResult r;
   while (r.outcome == Outcome::Running) {
-    Control label = record_step(d);
+    Control label = record_step(d, augment);
     if (!png_dir.empty()) {
       char name[64];
       std::snprintf(name, sizeof name, "/frame_%05zu.png", d.frames() - 1);

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "app/settings.hpp"
+#include "core/rng.hpp"
 #include "data/episode.hpp"
 #include "expert/autopilot.hpp"
 #include "world/world.hpp"
@@ -50,7 +51,9 @@ class ExpertRecorder {
   // throughput benchmark): empty `data` shaped for this world's frames, then append the
   // current frame, measurements, causes and the expert's label, and return that label.
   void begin(EpisodeData& data) const;
-  Control record_step(EpisodeData& data) const;
+  // With `augment` (collect.augment on, a free-steering ego), the frame may come from a shifted
+  // pose and its steer label be the correcting one (the returned control stays the expert's).
+  Control record_step(EpisodeData& data, Rng* augment = nullptr) const;
 
  private:
   World& world_;

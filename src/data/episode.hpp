@@ -41,6 +41,14 @@ struct EpisodeData {
   // policy), so the motion after that step is not the expert's. Empty is read as all 0 (files
   // written before the dataset existed); recorders always fill it.
   std::vector<uint8_t> noise;
+  // A free-steering ego (ego.lateral = "free"), ground truth: T each, the centre's signed offset
+  // from its lane's centre line (m, left +) and its heading minus the lane's (rad). Empty in
+  // route mode (the datasets are then absent).
+  std::vector<float> lateral_error;
+  std::vector<float> heading_error;
+  // The lateral augmentation (collect.augment): T*2, the shift (m, left +) and rotation (rad) of
+  // the pose a frame was rendered from, 0 0 for true frames. Empty when it was off.
+  std::vector<float> augment;
   // Ground-truth causes, each a series of length T (group "causes/" in the file).
   std::map<std::string, std::vector<float>> causes;
 

@@ -82,6 +82,9 @@ void validate(const EpisodeMeta& meta, const EpisodeData& data) {
   expect("command", data.command.size(), frames);
   expect("pose", data.pose.size(), frames * 3);
   if (!data.noise.empty()) expect("noise", data.noise.size(), frames);
+  if (!data.lateral_error.empty()) expect("lateral_error", data.lateral_error.size(), frames);
+  if (!data.heading_error.empty()) expect("heading_error", data.heading_error.size(), frames);
+  if (!data.augment.empty()) expect("augment", data.augment.size(), frames * 2);
   for (const auto& [name, series] : data.causes) {
     if (name.empty() || name == "." || name.find('/') != std::string::npos) {
       bad("cause name '" + name + "' is not a valid dataset name");
@@ -134,6 +137,15 @@ void write_file(const std::string& file_path, const EpisodeMeta& meta, const Epi
   if (data.noise.empty()) clean.assign(t, 0);
   write_dataset(root, "noise", H5T_STD_U8LE, H5T_NATIVE_UINT8, {t}, {},
                 data.noise.empty() ? clean.data() : data.noise.data());
+  if (!data.lateral_error.empty())
+    write_dataset(root, "lateral_error", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, {t}, {},
+                  data.lateral_error.data());
+  if (!data.heading_error.empty())
+    write_dataset(root, "heading_error", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, {t}, {},
+                  data.heading_error.data());
+  if (!data.augment.empty())
+    write_dataset(root, "augment", H5T_IEEE_F32LE, H5T_NATIVE_FLOAT, {t, 2}, {},
+                  data.augment.data());
 
   H5Id gcpl = untimed_plist(H5P_GROUP_CREATE);
   H5Id causes(check_id(H5Gcreate2(root, "causes", H5P_DEFAULT, gcpl.get(), H5P_DEFAULT),
@@ -199,6 +211,20 @@ EpisodeData read_data(hid_t root, const EpisodeMeta& meta) {
     data.noise = std::move(noise.values);
   } else {
     data.noise.assign(frames, 0);
+  }
+  // Optional: a free-steering ego's lane errors and the lateral augmentation.
+  for (auto [name, out] : {std::pair<const char*, std::vector<float>*>{"lateral_error", &data.lateral_error},
+                           {"heading_error", &data.heading_error}}) {
+    if (!has_link(root, name, std::string("dataset '") + name + "'")) continue;
+    auto v = read_dataset<float>(root, name, name, H5T_NATIVE_FLOAT, H5T_FLOAT, 1);
+    expect_frames(name, v.dims[0]);
+    *out = std::move(v.values);
+  }
+  if (has_link(root, "augment", "dataset 'augment'")) {
+    auto v = read_dataset<float>(root, "augment", "augment", H5T_NATIVE_FLOAT, H5T_FLOAT, 2);
+    expect_frames("augment", v.dims[0]);
+    if (v.dims[1] != 2) throw Failure("dataset 'augment' should have 2 columns");
+    data.augment = std::move(v.values);
   }
 
   const hsize_t stored_frames = static_cast<hsize_t>(

@@ -73,18 +73,21 @@ Control Autopilot::act(const World& w) const {
   return c;
 }
 
-double steer_towards_path(const World& w) {
-  // Pure pursuit from the rear axle (the kinematic bicycle's yaw rate is v_rear tan(angle) / L)
-  // to the point of the route path a speed-dependent distance ahead of the front bumper.
-  const EgoSettings& e = w.ego_model().settings();
-  const double v = w.ego().speed;
-  const double ahead = std::clamp(1.0 + 0.3 * v, 1.5, 8.0);
-  const Vec2 target = to_ego_frame(w.ego().pose, w.path_point(ahead));
-  const double x = target.x + 0.5 * e.wheelbase, y = target.y;
+double pursuit_steer(const Pose2& pose, Vec2 target, const EgoSettings& e) {
+  const Vec2 t = to_ego_frame(pose, target);
+  const double x = t.x + 0.5 * e.wheelbase, y = t.y;  // from the rear axle
   const double d2 = x * x + y * y;
   if (d2 < 1e-6) return 0.0;
   const double angle = std::atan(2.0 * e.wheelbase * y / d2);  // 2 L sin(alpha) / d
   return std::clamp(angle / e.max_steer, -1.0, 1.0);
+}
+
+double steer_towards_path(const World& w) { return steer_towards_path(w, w.ego().pose); }
+
+double steer_towards_path(const World& w, const Pose2& pose) {
+  // The point of the route path a speed-dependent distance ahead of the front bumper.
+  const double ahead = std::clamp(1.0 + 0.3 * w.ego().speed, 1.5, 8.0);
+  return pursuit_steer(pose, w.path_point(ahead), w.ego_model().settings());
 }
 
 }  // namespace cd

@@ -28,8 +28,17 @@ class Autopilot {
   ExpertSettings s_;
 };
 
-// The steer in [-1, 1] that tracks the route path (pure pursuit from the rear axle): the
-// expert's, and that of agents which only learn a speed (cs) in ego.lateral = "free".
+// Pure pursuit: the steer in [-1, 1] that puts the rear axle of an ego at `pose` (box centre
+// midway between the axles) on a circle through `target` (the kinematic bicycle's yaw rate is
+// v_rear tan(angle) / L, so angle = atan(2 L y / d^2) for the target at (x, y) from the rear
+// axle, d its distance).
+double pursuit_steer(const Pose2& pose, Vec2 target, const EgoSettings& ego);
+
+// The steer that tracks the route path: pure pursuit towards the path point a speed-dependent
+// distance ahead of the front bumper. The expert's, that of agents which only learn a speed (cs)
+// in ego.lateral = "free", and, from a pose other than the ego's, the corrective label of the
+// lateral augmentation (collect.augment).
 double steer_towards_path(const World& w);
+double steer_towards_path(const World& w, const Pose2& pose);
 
 }  // namespace cd

@@ -34,6 +34,35 @@ class LoadEpisodeTest(TempDirCase):
             self.assertIsNotNone(ep[key].base, key)
         self.assertEqual(ep["attrs"]["domain"], "driving")
 
+    def test_steering_data_with_lateral_augmentation(self):
+        """A free-steering ego's files: steer in the action, the lane errors, and the
+        augmentation's shifts (about the configured fraction of frames, within the ranges)."""
+        config = write_config(self.dir, "empty")
+        with open(config, "a") as f:
+            f.write("[ego]\nlateral = \"free\"\n")
+            f.write("[collect.augment]\nfraction = 0.5\nshift_m = 0.8\nrotate_rad = 0.1\n")
+        out = os.path.join(self.dir, "steer")
+        cli("collect", "--config", config, "--episodes", 1, "--out", out)
+        path = glob.glob(os.path.join(out, "*.h5"))[0]
+        ep = causaldrive.load_episode(path)
+        self.assertEqual(ep["attrs"]["action_names"], ["throttle", "brake", "steer"])
+        with h5py.File(path, "r") as f:
+            for key in ("lateral_error", "heading_error", "augment"):
+                np.testing.assert_array_equal(ep[key], f[key][()], err_msg=key)
+        aug = ep["augment"]
+        shifted = np.any(aug != 0, axis=1)
+        self.assertTrue(0.35 < shifted.mean() < 0.65, shifted.mean())
+        self.assertLessEqual(np.abs(aug[:, 0]).max(), 0.8)
+        self.assertLessEqual(np.abs(aug[:, 1]).max(), 0.1)
+        # The expert keeps its lane; the labels of frames seen from the left (shift > 0.4 m,
+        # turned less than 0.02 rad) steer right of the true frames' labels on average.
+        self.assertLess(np.abs(ep["lateral_error"]).max(), 1.6)
+        steer = ep["action"][:, 2]
+        left = shifted & (aug[:, 0] > 0.4) & (np.abs(aug[:, 1]) < 0.02)
+        right = shifted & (aug[:, 0] < -0.4) & (np.abs(aug[:, 1]) < 0.02)
+        self.assertTrue(left.any() and right.any())
+        self.assertLess(steer[left].mean(), steer[right].mean())
+
     def test_errors(self):
         with self.assertRaises(causaldrive.IoError) as e:
             causaldrive.load_episode(os.path.join(self.dir, "missing.h5"))

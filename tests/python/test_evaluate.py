@@ -83,12 +83,12 @@ class EvaluateTest(TempDirCase):
         self.assertEqual(res["summary"]["success_rate"], 0.0)
 
         def wrong_shape(obs):
-            return [0.5, 0.0, 0.0]
+            return [0.5, 0.0, 0.0, 0.0]  # (throttle, brake) or (throttle, brake, steer) only
 
         with self.assertRaises(causaldrive.ConfigError) as e:
             causaldrive.evaluate(wrong_shape, self.suite, os.path.join(self.dir, "bad"),
                                  config=self.config)
-        self.assertIn("shape (3,)", str(e.exception))
+        self.assertIn("shape (4,)", str(e.exception))
 
         count = [0]
 

@@ -71,6 +71,23 @@ TEST(Bicycle, SteeringAngleIsRateLimitedAndBounded) {
   EXPECT_NEAR(m.next_steer_angle(0.0, 5.0, 10.0), 0.6, 1e-12);   // steer clamped to [-1, 1]
 }
 
+// The lateral augmentation's label: pure pursuit from the shifted or rotated pose towards the
+// same path point. Target 10 m ahead on the lane centre (x axis), L = 2.7, max_steer = 0.6.
+TEST(AugmentationLabel, CorrectiveSteerHasTheHandComputedGeometry) {
+  const EgoSettings e = bicycle();
+  const Vec2 target{10, 0};
+  EXPECT_NEAR(pursuit_steer({{0, 0}, 0}, target, e), 0.0, 1e-12);
+  // Shifted 1 m left: the target at (10 + 1.35, -1) from the rear axle,
+  // angle = atan(2 * 2.7 * -1 / (11.35^2 + 1)) = atan(-0.041596) = -0.041572 rad = -0.06929 steer.
+  EXPECT_NEAR(pursuit_steer({{0, 1}, 0}, target, e), -0.069285, 1e-5);
+  EXPECT_NEAR(pursuit_steer({{0, -1}, 0}, target, e), 0.069285, 1e-5);  // mirror image
+  // Rotated 0.1 rad left: the target at (10 cos 0.1 + 1.35, -10 sin 0.1) = (11.300, -0.998),
+  // angle = atan(-5.3916 / 128.686) = -0.041873 rad = -0.06978 steer.
+  EXPECT_NEAR(pursuit_steer({{0, 0}, 0.1}, target, e), -0.069779, 1e-5);
+  // Far off to the side the correction saturates at full lock.
+  EXPECT_DOUBLE_EQ(pursuit_steer({{8, 6}, 0.5}, target, e), -1.0);
+}
+
 // A two-way road along x (an eastbound lane below y = 0, a westbound one above), and a
 // junction lane continuing the eastbound one beyond x = 100.
 RoadMap two_way_road() {
