@@ -1,5 +1,6 @@
 #pragma once
 // Planar geometry in SUMO's network frame (metres, x east, y north).
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -47,6 +48,30 @@ inline double polyline_length(const Polyline& p) {
   double s = 0;
   for (size_t i = 1; i < p.size(); ++i) s += (p[i] - p[i - 1]).norm();
   return s;
+}
+
+// The point `ahead` metres along a polyline from the projection of `from` onto it (beyond its
+// end, along its last segment). A path tracker's target on a planned path.
+inline Vec2 point_along_polyline(const Polyline& line, Vec2 from, double ahead) {
+  if (line.empty()) return from;
+  size_t best = 0;
+  double best_d2 = 1e300, best_t = 0;
+  for (size_t k = 0; k + 1 < line.size(); ++k) {
+    const Vec2 ab = line[k + 1] - line[k];
+    const double len2 = ab.dot(ab);
+    const double t = len2 > 1e-12 ? std::clamp((from - line[k]).dot(ab) / len2, 0.0, 1.0) : 0.0;
+    const Vec2 d = from - (line[k] + ab * t);
+    if (d.dot(d) < best_d2) best_d2 = d.dot(d), best = k, best_t = t;
+  }
+  double left = ahead;
+  for (size_t k = best; k + 1 < line.size(); ++k) {
+    const Vec2 a = k == best ? line[k] + (line[k + 1] - line[k]) * best_t : line[k];
+    const Vec2 ab = line[k + 1] - a;
+    const double len = ab.norm();
+    if (len >= left || k + 2 == line.size()) return len > 1e-9 ? a + ab * (left / len) : a;
+    left -= len;
+  }
+  return line.back();
 }
 
 }  // namespace cd

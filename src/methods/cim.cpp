@@ -40,6 +40,8 @@
 #include "core/progress.hpp"
 #include "core/rng.hpp"
 #include "agents/agent.hpp"
+#include "expert/autopilot.hpp"
+#include "world/world.hpp"
 #include "causal/cause_selection.hpp"
 #include "control/pid.hpp"
 #include "datasets/episode_set.hpp"
@@ -840,8 +842,9 @@ namespace {
 // is the route the ego follows (no lateral control).
 class CimAgent : public Agent {
  public:
-  CimAgent(const std::string& method, const std::string& dir, const Settings& s)
+  CimAgent(const std::string& method, const std::string& dir, const Settings& s, const World* world)
       : method_(method),
+        world_(world),
         run_(require_cim_run(dir, method, {"vae", "causes", "predictor"}, "agent '" + method + "':")),
         vae_(run_.vae.latents),
         pid_(s.control, EgoModel(s.ego), s.world.dt) {
@@ -892,10 +895,16 @@ class CimAgent : public Agent {
       for (int v = 0; v < V; ++v) in[v * H + k] = mu[selected_[v]];
     }
     target_ = std::max(0.0, static_cast<double>(predictor_->forward(input_).item<float>()));
-    return pid_.control(target_, obs.speed);
+    Control c = pid_.control(target_, obs.speed);
+    // Its path is the route (seed 000's controller merges an imitative model's path with the
+    // causal speed; here the route stands for that path): a free-steering ego tracks it with
+    // the expert's path tracker.
+    if (world_ && world_->free_lateral()) c.steer = steer_towards_path(*world_);
+    return c;
   }
 
   double last_target_speed() const override { return target_; }
+  bool steers() const override { return true; }  // along the route (ego.lateral = "free")
 
  private:
   // mu of one frame, one image at a time (so a frame's mu never depends on its batch). The
@@ -916,6 +925,7 @@ class CimAgent : public Agent {
   }
 
   std::string method_;
+  const World* world_;  // the route's geometry, for a free-steering ego's path tracker
   CimRunInfo run_;
   GreyView view_;
   std::vector<int> selected_;
@@ -930,9 +940,9 @@ class CimAgent : public Agent {
 }  // namespace
 
 std::unique_ptr<Agent> load_cim_agent(const std::string& method, const std::string& dir,
-                                      const Settings& settings, const World*) {
+                                      const Settings& settings, const World* world) {
   set_torch_threads(1);
-  return std::make_unique<CimAgent>(method, dir, settings);
+  return std::make_unique<CimAgent>(method, dir, settings, world);
 }
 
 void cim_entangled_settings(Settings& s) { s.vae.beta = 1.0; }  // the plain VAE of the ablation

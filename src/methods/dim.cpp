@@ -29,6 +29,7 @@
 #include "core/rng.hpp"
 #include "datasets/split.hpp"
 #include "datasets/trajectory.hpp"
+#include "expert/autopilot.hpp"
 #include "inference/dim_planner.hpp"
 #include "inference/policy_runner.hpp"
 #include "methods/method.hpp"
@@ -327,16 +328,19 @@ struct OdoPose {
 
 // Every dim.replan_steps steps, plan a trajectory by maximising the (aggregated) likelihood of
 // the run's members plus the goal term, and drive at the speed the plan implies with the
-// shared speed PID. The ego follows its route lanes exactly, so the plan's speed is all that
-// reaches the vehicle. The measured speed is not an input (POMDP): the model sees the current
-// frame and the past positions from odometry.
+// shared speed PID. With ego.lateral = "route" the ego follows its route lanes exactly, so the
+// plan's speed is all that reaches the vehicle; with "free" the plan is also the path it steers
+// along (pure pursuit on the planned waypoints, kept in the network frame between replans).
+// The measured speed is not an input (POMDP): the model sees the current frame and the past
+// positions from odometry.
 class DimAgent : public Agent {
  public:
   DimAgent(const std::string& method, const std::string& dir, const Settings& s)
       : method_(method),
         planner_(dir, method),
         pid_(s.control, EgoModel(s.ego), s.world.dt),
-        planning_(s.dim) {
+        planning_(s.dim),
+        ego_(s.ego) {
     planner_.set_planning(planning_);
     // Refused here, in the process that loads the agent, rather than at the first act() of
     // an episode worker.
@@ -354,6 +358,7 @@ class DimAgent : public Agent {
   // Planning settings come from the evaluation's config ([dim] plan_*, goal_*, replan_steps,
   // aggregation), the network's from the run.
   double goal_distance() const override { return planning_.goal_distance; }
+  bool steers() const override { return true; }  // along its plan (ego.lateral = "free")
 
   void begin_episode() override {
     pid_.reset();
@@ -362,6 +367,7 @@ class DimAgent : public Agent {
     target_ = std::nan("");
     plans_ = moved_plans_ = 0;
     gain_sum_ = moved_sum_ = 0;
+    plan_.clear();
   }
 
   Control act(const Observation& obs) override {
@@ -387,12 +393,26 @@ class DimAgent : public Agent {
     if (steps_++ % planning_.replan_steps == 0) {
       const DimStep step = planner_.plan(obs.frames.back(), past, obs.goal_x, obs.goal_y);
       target_ = step.target_speed;
+      // The plan in the network frame, from where the ego stands now.
+      const double c = std::cos(now.heading), sn = std::sin(now.heading);
+      plan_.assign(1, Vec2{now.x, now.y});
+      for (size_t k = 0; k + 1 < step.plan.size(); k += 2)
+        plan_.push_back({now.x + c * step.plan[k] - sn * step.plan[k + 1],
+                         now.y + sn * step.plan[k] + c * step.plan[k + 1]});
       ++plans_;
       gain_sum_ += step.objective_after - step.objective_before;
       moved_sum_ += step.moved_m;
       moved_plans_ += step.objective_after > step.objective_before;
     }
-    return pid_.control(target_, obs.speed);
+    Control control = pid_.control(target_, obs.speed);
+    if (ego_.lateral == "free" && plan_.size() > 1) {
+      // Pure pursuit towards the plan point a speed-dependent distance ahead of the front
+      // bumper, measured along the plan from the ego's projection onto it.
+      const Pose2 pose{{now.x, now.y}, now.heading};
+      const double ahead = std::clamp(1.0 + 0.3 * target_, 1.5, 8.0) + 0.5 * ego_.length;
+      control.steer = pursuit_steer(pose, point_along_polyline(plan_, pose.pos, ahead), ego_);
+    }
+    return control;
   }
 
   double last_target_speed() const override { return target_; }
@@ -412,6 +432,8 @@ class DimAgent : public Agent {
   DimPlanner planner_;
   SpeedPid pid_;
   DimSettings planning_;
+  EgoSettings ego_;
+  std::vector<Vec2> plan_;  // the last plan's waypoints, network frame, from the ego's position
   std::deque<OdoPose> poses_;
   long steps_ = 0;
   double target_ = std::nan("");

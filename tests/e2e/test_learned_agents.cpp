@@ -78,6 +78,34 @@ TEST(DimCli, TrainsAndDrivesInTheSimulator) {
 // other and with the summary; the same run evaluated again gives the same bytes. (On a short
 // route the expert waits at red lights most of the time and the predictor's L1 fit is a
 // median speed of 0, so the tiny run records longer routes, where the expert mostly drives.)
+// A free-steering ego (ego.lateral = "free"): a family policy trained on its (throttle, brake,
+// steer) data and dim (steering along its plan) are accepted and drive; their episodes record
+// the lateral error. A policy trained without steer is refused there with one line.
+TEST(SteeringAgents, TrainedOnSteeringDataTheyDriveAFreeEgo) {
+  const std::string free = "\n[ego]\nlateral = \"free\"\n";
+  test::TinyRun bc({.method = "bc-so",
+                    .traffic = "empty",
+                    .extra = free + "\n[train]\nepochs = 1\nmax_samples = 300\nthreads = 1\n",
+                    .suite = {.traffic = "empty", .scenarios = {"route"}}});
+  bc.eval("eval");
+  json res = bc.results("eval");
+  ASSERT_EQ(res["episodes"].size(), 1u);
+  EXPECT_EQ(res["summary"]["infrastructure_failures"], 0);
+  EXPECT_TRUE(res["episodes"][0].contains("lateral_error_m")) << res.dump();
+  test::TinyRun dim({.method = "dim",
+                     .traffic = "empty",
+                     .extra = free + "\n[train]\nepochs = 1\nmax_samples = 400\nthreads = 1\n"
+                                     "batch_size = 32\n"
+                                     "\n[dim]\nfeatures = 32\nhidden = 32\nplan_iterations = 10\n",
+                     .suite = {.traffic = "empty", .scenarios = {"route"}}});
+  dim.eval("eval");
+  res = dim.results("eval");
+  ASSERT_EQ(res["episodes"].size(), 1u);
+  EXPECT_EQ(res["summary"]["infrastructure_failures"], 0);
+  EXPECT_TRUE(res["episodes"][0].contains("lateral_error_m")) << res.dump();
+  EXPECT_GT(res["episodes"][0]["agent"]["plans"].get<double>(), 0.0);
+}
+
 TEST(CimEval, TinyRunDrivesInTheSimulator) {
   test::TinyRun run({.method = "cim",
                      .traffic = "empty",

@@ -88,6 +88,20 @@ TEST(AugmentationLabel, CorrectiveSteerHasTheHandComputedGeometry) {
   EXPECT_DOUBLE_EQ(pursuit_steer({{8, 6}, 0.5}, target, e), -1.0);
 }
 
+// The tracker's target on a planned path (dim and rip steer along their plan).
+TEST(PathTarget, PointAlongAPolylineFromTheProjection) {
+  const Polyline l = {{0, 0}, {10, 0}, {10, 10}};
+  Vec2 p = point_along_polyline(l, {3, 1}, 4);  // projects to (3, 0): 4 m on is (7, 0)
+  EXPECT_NEAR(p.x, 7, 1e-12);
+  EXPECT_NEAR(p.y, 0, 1e-12);
+  p = point_along_polyline(l, {8, -2}, 5);  // (8, 0) + 2 m to the corner + 3 m up
+  EXPECT_NEAR(p.x, 10, 1e-12);
+  EXPECT_NEAR(p.y, 3, 1e-12);
+  p = point_along_polyline(l, {10, 9}, 4);  // beyond the end: along the last segment
+  EXPECT_NEAR(p.x, 10, 1e-12);
+  EXPECT_NEAR(p.y, 13, 1e-12);
+}
+
 // A two-way road along x (an eastbound lane below y = 0, a westbound one above), and a
 // junction lane continuing the eastbound one beyond x = 100.
 RoadMap two_way_road() {
