@@ -33,7 +33,33 @@ mujoco_env_names = _core.mujoco_env_names
 agent_names = _core.agent_names
 
 
-class DrivingEnv:
+class _Env:
+    """What both kinds of environment share: the Gymnasium calls over the C++ environment."""
+
+    metadata = {"render_modes": []}
+    render_mode = None
+
+    def step(self, action):
+        return self._env.step(action)
+
+    def expert_action(self):
+        """The privileged expert's action at the current state."""
+        return self._env.expert_action()
+
+    def render(self):
+        return None
+
+    def close(self):
+        self._env.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class DrivingEnv(_Env):
     """The driving world as a Gymnasium-style environment (use make()).
 
     NAME is a built-in suite or a suite .json file (reset() runs its episodes in eval's order;
@@ -55,9 +81,6 @@ class DrivingEnv:
     "outcome" (success, collision, inertia or timeout) and "episode_record" (as in eval's
     results.json).
     """
-
-    metadata = {"render_modes": []}
-    render_mode = None
 
     def __init__(self, name, config=None, settings=None):
         self._env = _core.DrivingEnv(name, config, settings)
@@ -90,27 +113,8 @@ class DrivingEnv:
             episode = options.get("episode")
         return self._env.reset(seed, episode)
 
-    def step(self, action):
-        return self._env.step(action)
 
-    def expert_action(self):
-        """The privileged expert's action (throttle, brake) at the current state."""
-        return self._env.expert_action()
-
-    def render(self):
-        return None
-
-    def close(self):
-        self._env.close()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
-
-class MujocoEnv:
+class MujocoEnv(_Env):
     """A MuJoCo-Image environment (halfcheetah, hopper, ant, reacher, humanoid) with Gym's
     reward, termination and episode limit (use make()).
 
@@ -120,9 +124,6 @@ class MujocoEnv:
     and at the end "outcome" and "episode_return". expert_action() asks the planner expert
     (costly: it simulates its rollouts). reset(seed=s) gives collect's initial state of seed s.
     """
-
-    metadata = {"render_modes": []}
-    render_mode = None
 
     def __init__(self, name, config=None, settings=None):
         self._env = _core.MujocoEnv(name, config, settings)
@@ -138,24 +139,6 @@ class MujocoEnv:
         if options:
             raise ConfigError("reset: a MuJoCo-Image environment takes no options")
         return self._env.reset(seed)
-
-    def step(self, action):
-        return self._env.step(action)
-
-    def expert_action(self):
-        return self._env.expert_action()
-
-    def render(self):
-        return None
-
-    def close(self):
-        self._env.close()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
 
 
 def make(name, config=None, settings=None):
