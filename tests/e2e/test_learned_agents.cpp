@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -104,6 +105,19 @@ TEST(SteeringAgents, TrainedOnSteeringDataTheyDriveAFreeEgo) {
   EXPECT_EQ(res["summary"]["infrastructure_failures"], 0);
   EXPECT_TRUE(res["episodes"][0].contains("lateral_error_m")) << res.dump();
   EXPECT_GT(res["episodes"][0]["agent"]["plans"].get<double>(), 0.0);
+}
+
+TEST(SteeringAgents, APolicyTrainedWithoutSteerIsRefusedOnAFreeEgo) {
+  test::TinyRun route({.method = "bc-so",
+                       .traffic = "empty",
+                       .extra = "\n[train]\nepochs = 1\nmax_samples = 200\nthreads = 1\n",
+                       .suite = {.traffic = "empty", .scenarios = {"route"}}});
+  const std::string free_config = test::write_test_config(
+      route.dir(), "empty", "\n[ego]\nlateral = \"free\"\n", "free.toml");
+  const test::CommandResult r = test::run_cli(
+      test::eval_args(free_config, "bc-so", route.run(), route.suite(), route.dir() / "free", 1));
+  test::expect_one_line_error(r, "trained without steer");
+  EXPECT_FALSE(std::filesystem::exists(route.dir() / "free/results.json"));
 }
 
 TEST(CimEval, TinyRunDrivesInTheSimulator) {
