@@ -193,11 +193,10 @@ py::object json_to_python(const nlohmann::json& j) {
 
 // ---------------------------------------------------------------- driving
 
-// One libsumo simulation per process: the driving environment and evaluate() take turns.
-int g_live_worlds = 0;
-
+// One libsumo simulation per process (World refuses a second one): the driving environment and
+// evaluate() take turns, and the refusal names the way out.
 void claim_world(const char* what) {
-  if (g_live_worlds > 0)
+  if (World::alive())
     throw Error(std::string(what) +
                 ": a driving environment is open in this process (libsumo runs one simulation "
                 "per process); close() it first");
@@ -209,16 +208,10 @@ class PyDrivingEnv {
                const std::optional<py::dict>& settings) {
     claim_world("make");
     env_ = std::make_unique<DrivingEnv>(name, settings_of(config, settings));
-    ++g_live_worlds;
   }
   ~PyDrivingEnv() { close(); }
 
-  void close() {
-    if (env_) {
-      env_.reset();
-      --g_live_worlds;
-    }
-  }
+  void close() { env_.reset(); }
 
   DrivingEnv& env() {
     if (!env_) throw Error("the environment is closed");
@@ -313,28 +306,31 @@ class PyDrivingEnv {
   std::unique_ptr<DrivingEnv> env_;
 };
 
-// An Observation from a Python dict: bev (C,H,W) or (K,C,H,W) uint8, speed, command.
+// An Observation from a Python dict (bev (C,H,W) or (K,C,H,W) uint8, speed, command), with the
+// frames it points into.
 struct ObservationHolder {
   py::array_t<uint8_t, py::array::c_style | py::array::forcecast> frames;
   Observation obs;
 };
 
-void fill_observation(const py::dict& d, ObservationHolder& h) {
+// Speed and command always; the frames when the agent uses them.
+void fill_observation(const py::dict& d, ObservationHolder& h, bool frames) {
+  Observation& o = h.obs;
+  o.speed = d.contains("speed") ? py::array_t<double, py::array::forcecast>::ensure(d["speed"]).at(0) : 0.0;
+  o.command = d.contains("command") ? d["command"].cast<int>() : 0;
+  if (!frames) return;
   if (!d.contains("bev")) throw ConfigError("the observation has no 'bev'");
   h.frames = py::array_t<uint8_t, py::array::c_style | py::array::forcecast>::ensure(d["bev"]);
   if (!h.frames || (h.frames.ndim() != 3 && h.frames.ndim() != 4))
     throw ConfigError("observation 'bev' must be a uint8 array of shape (C, H, W) or (K, C, H, W)");
   const int nd = static_cast<int>(h.frames.ndim());
   const py::ssize_t k = nd == 4 ? h.frames.shape(0) : 1;
-  Observation& o = h.obs;
   o.channels = static_cast<int>(h.frames.shape(nd - 3));
   o.height = static_cast<int>(h.frames.shape(nd - 2));
   o.width = static_cast<int>(h.frames.shape(nd - 1));
   o.frames.clear();
   const size_t bytes = static_cast<size_t>(o.channels) * o.height * o.width;
   for (py::ssize_t i = 0; i < k; ++i) o.frames.push_back(h.frames.data() + i * bytes);
-  o.speed = d.contains("speed") ? py::array_t<double, py::array::forcecast>::ensure(d["speed"]).at(0) : 0.0;
-  o.command = d.contains("command") ? d["command"].cast<int>() : 0;
 }
 
 // A C++ agent called from Python (any agent but the expert, which reads the World).
@@ -352,12 +348,7 @@ class PyAgent {
   }
   py::array_t<float> act(const py::dict& obs) {
     ObservationHolder h;
-    if (agent_->uses_frames()) {
-      fill_observation(obs, h);
-    } else {
-      h.obs.speed = obs.contains("speed") ? py::array_t<double, py::array::forcecast>::ensure(obs["speed"]).at(0) : 0.0;
-      h.obs.command = obs.contains("command") ? obs["command"].cast<int>() : 0;
-    }
+    fill_observation(obs, h, agent_->uses_frames());
     const Control c = agent_->act(h.obs);
     return float_array({c.throttle, c.brake, c.steer});
   }
@@ -439,10 +430,6 @@ py::object evaluate(const py::object& policy, const std::string& suite, const st
       return std::make_unique<CallableAgent>(policy, name, history, history_stride);
     };
   }
-  ++g_live_worlds;
-  struct Release {
-    ~Release() { --g_live_worlds; }
-  } release;
   return json_to_python(run_eval(s, req).results);
 }
 

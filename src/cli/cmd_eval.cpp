@@ -117,7 +117,12 @@ void add_eval(CLI::App& app) {
     if (a->trials > 0) s.eval.trials = a->trials;
     if (!a->out.empty()) s.eval.out = a->out;
     if (!a->sensor.empty()) s.eval.sensor = a->sensor;
-    EvalRequest req{a->agent, a->checkpoint, a->label, a->quiet, a->trace};
+    EvalRequest req;
+    req.agent = a->agent;
+    req.checkpoint = a->checkpoint;
+    req.label = a->label;
+    req.quiet = a->quiet;
+    req.trace = a->trace;
     EvalReport r = run_eval(s, req);
     std::printf("%s", results_table(r.results).c_str());
     std::printf("results: %s/results.json (%d episodes run now", s.eval.out.c_str(), r.run_now);

@@ -72,7 +72,10 @@ void add_quickstart(CLI::App& app) {
       e.eval.out = eval_root + "/" + agent;
       std::printf("evaluating %s -> %s\n", agent.c_str(), e.eval.out.c_str());
       std::fflush(stdout);
-      run_eval(e, EvalRequest{agent, checkpoint, "", false});
+      EvalRequest req;
+      req.agent = agent;
+      req.checkpoint = checkpoint;
+      run_eval(e, req);
       runs.push_back(e.eval.out);
     }
     std::vector<RunResult> results;

@@ -47,12 +47,11 @@ const std::vector<int>& LaneGrid::near(Vec2 p) const {
 LaneProjection project_on_lane(const LaneGeom& lane, Vec2 p) {
   LaneProjection best;
   double best_d2 = std::numeric_limits<double>::infinity(), s = 0;
-  bool inside = false;
   for (size_t k = 0; k + 1 < lane.shape.size(); ++k) {
     const Vec2 a = lane.shape[k], b = lane.shape[k + 1], ab = b - a;
     const double len2 = ab.dot(ab), len = std::sqrt(len2);
     if (len2 < 1e-12) continue;
-    const double raw = (p - a).dot(ab) / len2, t = std::clamp(raw, 0.0, 1.0);
+    const double t = std::clamp((p - a).dot(ab) / len2, 0.0, 1.0);
     const Vec2 q = a + ab * t, d = p - q;
     const double d2 = d.dot(d);
     if (d2 < best_d2) {
@@ -60,14 +59,12 @@ LaneProjection project_on_lane(const LaneGeom& lane, Vec2 p) {
       best.direction = std::atan2(ab.y, ab.x);
       best.lateral = ab.cross(p - a) / len;
       best.along = s + t * len;
-      // Beyond its ends a lane reaches half its width (a round cap): where a junction lane
-      // meets a normal lane at an angle, their caps close the wedge between them.
-      inside = !((k == 0 && raw < 0) || (k + 2 == lane.shape.size() && raw > 1));
     }
     s += len;
   }
+  // Beyond its ends a lane reaches half its width (a round cap): where a junction lane meets a
+  // normal lane at an angle, their caps close the wedge between them.
   best.on = std::sqrt(best_d2) <= 0.5 * lane.width;
-  best.inside = inside;
   return best;
 }
 

@@ -34,9 +34,8 @@ class LaneGrid {
 struct LaneProjection {
   double lateral = 0;
   double direction = 0;
-  double along = 0;     // m from the lane's start
+  double along = 0;  // m from the lane's start
   bool on = false;
-  bool inside = false;  // the closest point is not an end of the line
 };
 LaneProjection project_on_lane(const LaneGeom& lane, Vec2 p);
 

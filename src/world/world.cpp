@@ -209,6 +209,8 @@ struct World::Sumo {
   long tls_cache_step = -1;
 };
 
+bool World::alive() { return g_world_alive; }
+
 World::World(const WorldConfig& config)
     : config_(config), ego_model_(config.ego), sumo_(std::make_unique<Sumo>()) {
   if (g_world_alive)

@@ -86,6 +86,8 @@ class World {
  public:
   // Starts SUMO on the configured network and reads its RoadNetwork.
   explicit World(const WorldConfig& config);
+  // Is a World alive in this process (libsumo runs one simulation per process)?
+  static bool alive();
   ~World();
   World(const World&) = delete;
   World& operator=(const World&) = delete;
