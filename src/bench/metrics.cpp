@@ -93,7 +93,8 @@ nlohmann::json episode_to_json(const EpisodeResult& e) {
                       {"green_light_entries", e.green_light_entries},
                       {"stop_go_events", ev},
                       {"wrong_way", e.wrong_way},
-                      {"lane_invasions", e.lane_invasions}};
+                      {"lane_invasions", e.lane_invasions},
+                      {"lane_changes", e.lane_changes}};
   if (e.lateral_error_m >= 0) j["lateral_error_m"] = e.lateral_error_m;
   if (!e.collided_with.empty()) j["collided_with"] = e.collided_with;
   if (!e.collision_kind.empty()) j["collision_kind"] = e.collision_kind;
@@ -125,6 +126,7 @@ EpisodeResult episode_from_json(const nlohmann::json& j) {
     e.agent = j.value("agent", nlohmann::json::object());
     e.wrong_way = j.value("wrong_way", 0);
     e.lane_invasions = j.value("lane_invasions", 0);
+    e.lane_changes = j.value("lane_changes", 0);
     e.lateral_error_m = j.value("lateral_error_m", -1.0);
     for (const auto& s : j.at("stop_go_events")) {
       StopGoEvent ev;
@@ -153,7 +155,8 @@ std::optional<double> quantile(std::vector<double> v, double q) {
 nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
   long n = 0, failures = 0, success = 0, collision = 0, inertia = 0, timeout = 0, red = 0;
   long vehicle_hits = 0, pedestrian_hits = 0, ego_struck = 0;
-  long events = 0, stalls = 0, passages = 0, green = 0, offroad = 0, wrong_way = 0, invasions = 0;
+  long events = 0, stalls = 0, passages = 0, green = 0, offroad = 0, wrong_way = 0, invasions = 0,
+       changes = 0;
   double lateral_sum = 0;
   long lateral_n = 0;
   double km = 0, completion = 0, distance = 0, duration = 0;
@@ -177,6 +180,7 @@ nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
     offroad += e.outcome == "offroad";
     wrong_way += e.wrong_way;
     invasions += e.lane_invasions;
+    changes += e.lane_changes;
     if (e.lateral_error_m >= 0) {
       lateral_sum += e.lateral_error_m;
       ++lateral_n;
@@ -235,6 +239,7 @@ nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
           {"offroad_rate", rate(offroad)},
           {"wrong_way_per_km", km > 0 ? wrong_way / km : 0.0},
           {"lane_invasions_per_km", km > 0 ? invasions / km : 0.0},
+          {"lane_changes_per_km", km > 0 ? changes / km : 0.0},
           {"mean_lateral_error_m", lateral_n > 0 ? nlohmann::json(lateral_sum / lateral_n)
                                                  : nlohmann::json()}};
   // The agent's own figures (dim/rip: how far the planner moves its plans), episode means.

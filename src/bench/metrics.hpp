@@ -73,6 +73,7 @@ struct EpisodeResult {
   // centre (m; negative when the ego was never on a lane, and in route mode).
   int wrong_way = 0;
   int lane_invasions = 0;
+  int lane_changes = 0;          // changes to a neighbouring lane of the same edge
   double lateral_error_m = -1;
   std::vector<StopGoEvent> events;
   nlohmann::json agent = nlohmann::json::object();  // the agent's episode_figures()

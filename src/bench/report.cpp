@@ -222,6 +222,7 @@ const std::vector<MetricSet>& metric_sets() {
         {"error_rate", "error %", 100.0},
         {"wrong_way_per_km", "wrong way / km", 1.0, 2},
         {"lane_invasions_per_km", "lane invasions / km", 1.0, 2},
+        {"lane_changes_per_km", "lane changes / km", 1.0, 2},
         {"mean_lateral_error_m", "lateral error m", 1.0, 2}},
        false,
        false},

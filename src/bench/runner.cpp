@@ -152,6 +152,7 @@ EpisodeResult EpisodeScorer::finish(const World& world, const StepResult& last,
   const WorldCounters& k = world.counters();
   r.wrong_way = k.wrong_way;
   r.lane_invasions = k.lane_invasions;
+  r.lane_changes = k.lane_changes;
   if (k.lateral_samples > 0) r.lateral_error_m = k.lateral_error_sum / k.lateral_samples;
   return r;
 }

@@ -49,6 +49,9 @@ Autopilot::Plan Autopilot::plan(const World& w) const {
       gt.lead_distance < gt.junction_exit_distance + w.settings().ego.length + s_.min_gap)
     stop_at(gt.junction_distance - s_.stop_margin);
   if (gt.ped_on_path) stop_at(gt.ped_distance - s_.min_gap);
+  // A lane change the route needs, held back by traffic on the lane it joins: wait where it
+  // must begin at the latest.
+  if (w.lane_change_hold() < 1e8) stop_at(w.lane_change_hold());
 
   p.speed = std::max(0.0, std::min(p.speed, stop_profile(p.stop, b)));
   return p;

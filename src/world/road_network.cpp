@@ -1,5 +1,7 @@
 #include "world/road_network.hpp"
 
+#include <cstdlib>
+
 namespace cd {
 
 const LaneGeom& RoadNetwork::rightmost_lane(const std::string& edge) const {
@@ -43,6 +45,7 @@ LanePlan RoadNetwork::lane_plan(const std::vector<std::string>& route) const {
   for (size_t k = route.size(); k-- > 0;) {
     auto it = edge_lanes.find(route[k]);
     if (it == edge_lanes.end()) break;
+    std::unordered_set<std::string> reach_next;  // lanes with any connection to edge k+1
     for (const std::string& lane : it->second) {
       if (k + 1 == route.size()) {
         good[k].insert(lane);
@@ -50,11 +53,53 @@ LanePlan RoadNetwork::lane_plan(const std::vector<std::string>& route) const {
       }
       auto lit = links.find(lane);
       if (lit == links.end()) continue;
-      for (const Link& l : lit->second)
+      for (const Link& l : lit->second) {
+        const LaneGeom* to = map.find(l.to_lane);
+        if (to && to->edge == route[k + 1]) reach_next.insert(lane);
         if (good[k + 1].count(l.to_lane)) good[k].insert(lane);
+      }
     }
+    if (good[k].empty()) good[k] = std::move(reach_next);
   }
   return good;
+}
+
+std::string RoadNetwork::change_lane(const LanePlan& plan, const std::string& lane,
+                                     size_t k) const {
+  const LaneGeom* g = map.find(lane);
+  if (!g || g->internal || k >= plan.size() || plan[k].empty() || plan[k].count(lane)) return "";
+  int best = -1;  // the planned lane index nearest to g's
+  for (const std::string& p : plan[k]) {
+    const LaneGeom* q = map.find(p);
+    if (q && (best < 0 || std::abs(q->index - g->index) < std::abs(best - g->index)))
+      best = q->index;
+  }
+  if (best < 0) return "";
+  const int step = best > g->index ? 1 : -1;
+  auto it = edge_lanes.find(g->edge);
+  if (it == edge_lanes.end()) return "";
+  for (const std::string& n : it->second) {
+    const LaneGeom* q = map.find(n);
+    if (q && q->index == g->index + step) return n;
+  }
+  return "";
+}
+
+std::vector<LaneChange> RoadNetwork::lane_changes(const std::vector<std::string>& route,
+                                                  int start_lane) const {
+  std::vector<LaneChange> changes;
+  if (route.empty() || start_lane < 0) return changes;
+  const LanePlan plan = lane_plan(route);
+  std::string lane = route.front() + "_" + std::to_string(start_lane), edge = route.front();
+  size_t k = 0;
+  for (int guard = 0; !lane.empty() && guard < 100000; ++guard) {
+    const std::string next = lane_after(route, plan, lane, k);
+    const LaneGeom *g = map.find(lane), *n = map.find(next);
+    if (g && n && !g->internal && !n->internal && g->edge == n->edge)
+      changes.push_back({lane, next});
+    lane = next;
+  }
+  return changes;
 }
 
 std::string RoadNetwork::lane_after(const std::vector<std::string>& route, const LanePlan& plan,
@@ -68,6 +113,7 @@ std::string RoadNetwork::lane_after(const std::vector<std::string>& route, const
     return l.via_lane.empty() ? l.to_lane : l.via_lane;
   }
   while (k < route.size() && route[k] != g->edge) ++k;
+  if (std::string side = change_lane(plan, lane, k); !side.empty()) return side;
   if (k + 1 >= route.size()) return "";
   return next_lane(lane, route[k + 1], k + 1 < plan.size() ? &plan[k + 1] : nullptr);
 }

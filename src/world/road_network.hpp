@@ -29,9 +29,16 @@ struct ViaInfo {
   int tls_index = -1;      // its index in that light's state string
 };
 
-// Per route edge k, the lanes of edge k from which the rest of the route is drivable without
-// a lane change (the ego never changes lanes).
+// Per route edge k, the lanes of edge k to drive on: those from which the rest of the route is
+// drivable without a lane change when there are any; else those with a connection to edge k+1
+// (a lane change on a later edge is then unavoidable). A lane of edge k outside the set is left
+// by a lane change towards it (RoadNetwork::change_lane).
 using LanePlan = std::vector<std::unordered_set<std::string>>;
+
+// A lane change along a route: from a lane to its neighbour on the same edge.
+struct LaneChange {
+  std::string from, to;
+};
 
 struct RoadNetwork {
   std::string path;  // the .net.xml it was read from
@@ -60,9 +67,18 @@ struct RoadNetwork {
   std::string next_lane(const std::string& lane, const std::string& to_edge,
                         const std::unordered_set<std::string>* good) const;
   // The lane after `lane` along `route` (plan: lane_plan(route)); k tracks the route edge
-  // index across calls. "" at the route's end.
+  // index across calls. "" at the route's end. For a normal lane outside the plan this is its
+  // neighbour towards the plan on the same edge (a lane change: change_lane).
   std::string lane_after(const std::vector<std::string>& route, const LanePlan& plan,
                          const std::string& lane, size_t& k) const;
+  // The neighbour (same edge, index one step towards the plan's nearest lane) that a normal
+  // lane of route edge k outside plan[k] changes to; "" when the lane is in the plan (or is
+  // internal, or the edge has no planned lane).
+  std::string change_lane(const LanePlan& plan, const std::string& lane, size_t k) const;
+  // The lane changes of a drive along `route` from lane index start_lane of its first edge, in
+  // order (empty: the route is drivable without changing lanes).
+  std::vector<LaneChange> lane_changes(const std::vector<std::string>& route,
+                                       int start_lane) const;
   // The first link of a route from lane start_lane of its first edge: its via lane ("" if
   // none).
   std::string first_via(const std::vector<std::string>& route, int start_lane) const;

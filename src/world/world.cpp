@@ -35,6 +35,22 @@ constexpr double kPathHorizon = 80.0;   // m of route ahead that the checks look
 constexpr double kTopUpPeriod = 1.0;    // s between background refills
 bool g_world_alive = false;             // libsumo holds one simulation per process
 
+constexpr double kLaneChangeRoom = 30.0;  // m of an edge's lane needed per lane change on it
+
+// Do the lane changes a drive of `route` from `start_lane` (at start_pos) needs each find
+// kLaneChangeRoom metres on their edge?
+bool lane_changes_fit(const RoadNetwork& net, const std::vector<std::string>& route,
+                      int start_lane, double start_pos) {
+  std::unordered_map<std::string, int> per_edge;
+  for (const LaneChange& c : net.lane_changes(route, start_lane))
+    ++per_edge[net.map.find(c.from)->edge];
+  for (const auto& [edge, n] : per_edge) {
+    double room = net.rightmost_lane(edge).length - (edge == route.front() ? start_pos : 0.0);
+    if (room < kLaneChangeRoom * n) return false;
+  }
+  return true;
+}
+
 bool contains(const std::vector<std::string>& v, const std::string& s) {
   return std::find(v.begin(), v.end(), s) != v.end();
 }
@@ -255,20 +271,29 @@ Task World::sample_task(uint64_t seed, double min_len, double max_len) {
     libsumo::TraCIStage r = libsumo::Simulation::findRoute(from, to);
     if (r.edges.size() < 2) continue;
     double from_len = net_->rightmost_lane(from).length, to_len = net_->rightmost_lane(to).length;
-    // Only routes the ego can drive without changing lanes; it starts on the rightmost lane
-    // that allows that.
-    auto good = net_->lane_plan(r.edges);
+    const double start_pos = std::min(from_len * 0.3, std::max(0.0, from_len - 10.0));
     int start_lane = -1;
-    for (const std::string& lane : net_->edge_lanes.at(from)) {
-      const LaneGeom* g = net_->map.find(lane);
-      if (good.front().count(lane) && (start_lane < 0 || g->index < start_lane))
-        start_lane = g->index;
+    if (free_) {
+      // The wheel is the ego's: it starts on the rightmost lane and changes lanes where the
+      // route needs it, given room for each change on its edge.
+      start_lane = net_->rightmost_lane(from).index;
+      if (!lane_changes_fit(*net_, r.edges, start_lane, start_pos)) continue;
+    } else {
+      // Only routes SUMO can drive for the ego without changing lanes; it starts on the
+      // rightmost lane that allows that.
+      auto good = net_->lane_plan(r.edges);
+      for (const std::string& lane : net_->edge_lanes.at(from)) {
+        const LaneGeom* g = net_->map.find(lane);
+        if (good.front().count(lane) && (start_lane < 0 || g->index < start_lane) &&
+            net_->lane_changes(r.edges, g->index).empty())
+          start_lane = g->index;
+      }
     }
     if (start_lane < 0) continue;
     Task t;
     t.route = r.edges;
     t.start_lane = start_lane;
-    t.start_pos = std::min(from_len * 0.3, std::max(0.0, from_len - 10.0));
+    t.start_pos = start_pos;
     t.goal_pos = std::max(1.0, to_len * 0.5);
     // findRoute covers whole edges; the task starts and ends inside them.
     t.route_length = r.length - t.start_pos - (to_len - t.goal_pos);
@@ -350,6 +375,9 @@ void World::reset(const Task& task) {
   if (std::find(scenario_names().begin(), scenario_names().end(), task.scenario) ==
       scenario_names().end())
     throw SimError("task has an unknown scenario '" + task.scenario + "'");
+  if (!free_ && task.start_lane >= 0 && !net_->lane_changes(task.route, task.start_lane).empty())
+    throw SimError("the task's route needs a lane change, which only a free-steering ego makes "
+                   "(ego.lateral = \"free\")");
   task_ = task;
   plan_ = net_->lane_plan(task_.route);
   if (task_.timeout_s <= 0) task_.timeout_s = task_.route_length / (5.0 / 3.6) + 20.0;
@@ -495,6 +523,8 @@ void World::insert_ego() {
     std::snprintf(p, sizeof p, "%.2f", task_.start_pos);
     const std::string lane = task_.start_lane >= 0 ? std::to_string(task_.start_lane) : "best";
     libsumo::Vehicle::add(kEgo, kEgoRoute, kEgoType, "now", lane, p, "0", "current", "max");
+    // SUMO's own strategic lane changes would move a free ego's stand-in before it is ours.
+    if (free_) libsumo::Vehicle::setLaneChangeMode(kEgo, 0);
     for (int i = 0; i < 50; ++i) {
       advance();
       if (contains(libsumo::Vehicle::getIDList(), kEgo) &&
@@ -558,7 +588,9 @@ StepResult World::step(const Control& c) {
     const double h = free_pose_.heading;
     const Vec2 front = free_pose_.pos + Vec2{std::cos(h), std::sin(h)} * (0.5 * config_.ego.length);
     double s = 0;
-    if (path_.locate(front, kPathMatchWidth, &s))
+    if (follow_lane_change())
+      sumo_speed = v1;
+    else if (path_.locate(front, kPathMatchWidth, &s))
       sumo_speed = std::clamp(s / config_.world.dt, 0.0, config_.ego.max_speed);
   }
   sumo_call("simulation step failed", [&] {
@@ -575,6 +607,47 @@ StepResult World::step(const Control& c) {
   sumo_call("reading the simulation failed", [&] { r = check_events(present); });
   outcome_ = r.outcome;
   return r;
+}
+
+bool World::follow_lane_change() {
+  const LaneGeom* on = net_->map.find(ego_.lane);
+  if (!on || on->internal) return false;
+  auto it = net_->edge_lanes.find(on->edge);
+  if (it == net_->edge_lanes.end()) return false;
+  const LaneGeom* best = nullptr;
+  double best_lat = 1e300;
+  for (const std::string& id : it->second) {
+    const LaneGeom* g = net_->map.find(id);
+    const LaneProjection p = project_on_lane(*g, free_pose_.pos);
+    if (p.on && std::abs(p.lateral) < best_lat) {
+      best = g;
+      best_lat = std::abs(p.lateral);
+    }
+  }
+  if (!best || best == on) return false;
+  // Its front where the bicycle's front projects on the new lane, less this step's travel
+  // (the step's setSpeed moves it on).
+  const double h = free_pose_.heading;
+  const Vec2 front = free_pose_.pos + Vec2{std::cos(h), std::sin(h)} * (0.5 * config_.ego.length);
+  const double along = project_on_lane(*best, front).along - free_speed_ * config_.world.dt;
+  const double pos = std::clamp(along, std::min(config_.ego.length, best->length), best->length);
+  sumo_call("cannot move the ego to lane " + best->id,
+            [&] { libsumo::Vehicle::moveTo(kEgo, best->id, pos); });
+  ++counters_.lane_changes;
+  return true;
+}
+
+bool World::lane_change_clear(const LaneGeom& to, double pos) const {
+  for (const Actor& a : actors_) {
+    if (a.pedestrian) continue;
+    const LaneProjection p = project_on_lane(to, a.box.center);
+    if (!p.on) continue;
+    // Room ahead of the ego's front for it, and behind its rear for the car to brake.
+    const double d = p.along - pos;  // + ahead of the ego's front
+    const double behind = config_.ego.length + 3.0 + 1.5 * a.speed + 0.5 * a.box.length;
+    if (d > -behind && d < 6.0 + 0.5 * a.box.length) return false;
+  }
+  return true;
 }
 
 void World::hand_ego_to_sumo() {
@@ -710,7 +783,10 @@ void World::refresh() {
     a.speed = number(libsumo::VAR_SPEED);
     actors_.push_back(std::move(a));
   }
-  path_ = trace_route_path(*net_, task_.route, plan_, ego_.lane, ego_.lane_pos, kPathHorizon);
+  LaneChangeOptions changes;
+  changes.clear = [this](const LaneGeom& to, double pos) { return lane_change_clear(to, pos); };
+  path_ = trace_route_path(*net_, task_.route, plan_, ego_.lane, ego_.lane_pos, kPathHorizon,
+                           changes);
   const TruthStep ts = compute_ground_truth(
       {*net_, path_, actors_, ego_.pose, ego_.speed, config_.ego.width, config_.world,
        [this](const ViaInfo& vi) { return link_state(vi); },

@@ -78,6 +78,7 @@ struct WorldCounters {
   // absolute lateral error to the lane centre over `lateral_samples` steps on a lane.
   int wrong_way = 0;
   int lane_invasions = 0;
+  int lane_changes = 0;  // moves of the SUMO stand-in to a neighbouring lane of its edge
   double lateral_error_sum = 0;
   long lateral_samples = 0;
 };
@@ -137,6 +138,9 @@ class World {
   // The point of the ego's path `s` metres ahead of its front bumper (network frame), or its
   // last point when the path known this step is shorter.
   Vec2 path_point(double s) const { return path_.point(s, ego_.pose.pos); }
+  // Metres ahead to where a lane change the route needs must begin while traffic on the lane
+  // it joins keeps it from beginning now (the expert waits there); 1e300 when none is held.
+  double lane_change_hold() const { return path_.hold; }
 
   // Test hooks: place a stopped vehicle on a lane position (scripted scenarios), and read
   // the per-step collision and red-light state.
@@ -151,6 +155,12 @@ class World {
   void top_up_background();
   bool add_background_car(const std::string& id);
   void insert_ego();
+  // Free steering: moves the SUMO stand-in to the lane of its edge that the bicycle's centre
+  // is on, when that is another lane (a lane change). Returns whether it moved.
+  bool follow_lane_change();
+  // Is the lane `to` free of cars around lane position `pos`, so that the ego may change onto
+  // it now?
+  bool lane_change_clear(const LaneGeom& to, double pos) const;
   // red_light: runs the simulation until the light of the ego's first link turns red.
   void wait_for_red_onset();
   void advance();  // one SUMO step plus the periodic background refill

@@ -119,6 +119,89 @@ Actor car_at(double x, double speed) {
   return Actor{"car", Box{{x, 0}, 0, 4.0, 1.8}, speed, false};
 }
 
+// Lane changes. On straight_network, A_1 cannot reach B: a drive from A_1 changes to A_0.
+TEST(RoadNetwork, PlansALaneChangeWhereTheRouteNeedsOne) {
+  const RoadNetwork net = straight_network();
+  const LanePlan plan = net.lane_plan(kRoute);
+  EXPECT_EQ(net.change_lane(plan, "A_1", 0), "A_0");
+  EXPECT_EQ(net.change_lane(plan, "A_0", 0), "") << "A_0 is planned";
+  EXPECT_EQ(net.change_lane(plan, ":J_0_0", 0), "") << "never inside a junction";
+  size_t k = 0;
+  EXPECT_EQ(net.lane_after(kRoute, plan, "A_1", k), "A_0");
+  ASSERT_EQ(net.lane_changes(kRoute, 1).size(), 1u);
+  EXPECT_EQ(net.lane_changes(kRoute, 1)[0].from, "A_1");
+  EXPECT_EQ(net.lane_changes(kRoute, 1)[0].to, "A_0");
+  EXPECT_TRUE(net.lane_changes(kRoute, 0).empty());
+
+  // A -> B -> C where A reaches only B's left lane and only B's right lane reaches C: no lane
+  // of A drives the route without a change, so A's plan falls back to the lanes that reach B,
+  // and the change happens on B.
+  RoadNetwork n2;
+  n2.map.add(lane("A_0", "A", {0, 0}, {100, 0}, false));
+  for (int i : {0, 1}) {
+    LaneGeom b = lane("B_" + std::to_string(i), "B", {100, 3.2 * i}, {200, 3.2 * i}, false);
+    b.index = i;
+    n2.map.add(b);
+  }
+  n2.map.add(lane("C_0", "C", {200, 0}, {300, 0}, false));
+  n2.links["A_0"] = {{"B_1", "", 's'}};
+  n2.links["B_0"] = {{"C_0", "", 's'}};
+  n2.edge_lanes = {{"A", {"A_0"}}, {"B", {"B_0", "B_1"}}, {"C", {"C_0"}}};
+  const std::vector<std::string> route = {"A", "B", "C"};
+  const LanePlan p2 = n2.lane_plan(route);
+  EXPECT_EQ(p2[1], (std::unordered_set<std::string>{"B_0"}));
+  EXPECT_EQ(p2[0], (std::unordered_set<std::string>{"A_0"})) << "the fallback: A_0 reaches B";
+  const std::vector<LaneChange> changes = n2.lane_changes(route, 0);
+  ASSERT_EQ(changes.size(), 1u);
+  EXPECT_EQ(changes[0].from, "B_1");
+  EXPECT_EQ(changes[0].to, "B_0");
+}
+
+TEST(RoutePath, ALaneChangeSteersTheDiagonalAndHoldsForTraffic) {
+  const RoadNetwork net = straight_network();
+  const LanePlan plan = net.lane_plan(kRoute);
+  LaneChangeOptions changes;
+  changes.length = 20;
+  // The front at 40 m on A_1: the change begins at once, ending on A_0 at 60 m.
+  RoutePath path = trace_route_path(net, kRoute, plan, "A_1", 40, 200, changes);
+  ASSERT_EQ(path.lanes.size(), 4u);
+  EXPECT_EQ(path.lanes[0].lane->id, "A_1");
+  EXPECT_DOUBLE_EQ(path.lanes[0].steer_to, 40);
+  EXPECT_DOUBLE_EQ(path.lanes[0].to_pos, 60);
+  EXPECT_EQ(path.lanes[1].lane->id, "A_0");
+  EXPECT_DOUBLE_EQ(path.lanes[1].from_pos, 40);
+  EXPECT_DOUBLE_EQ(path.lanes[1].steer_from, 60);
+  EXPECT_DOUBLE_EQ(path.lanes[1].s_begin, 0);
+  EXPECT_DOUBLE_EQ(path.lanes[2].s_begin, 60) << "the junction: 60 m on, as without a change";
+  EXPECT_GE(path.hold, 1e299) << "nothing holds the change back";
+  // The line to steer along: within the change, the point where it ends; then along A_0.
+  EXPECT_NEAR(path.point(0, {}).x, 60, 1e-9);
+  EXPECT_NEAR(path.point(0, {}).y, 0, 1e-9);
+  EXPECT_NEAR(path.point(10, {}).x, 60, 1e-9);
+  EXPECT_NEAR(path.point(25, {}).x, 65, 1e-9);
+  // Both lanes hold what is on the path over the change's stretch.
+  double s = -1;
+  ASSERT_TRUE(path.locate({50, 3.2}, 1.0, &s));
+  EXPECT_NEAR(s, 10, 1e-9);
+  ASSERT_TRUE(path.locate({50, 0}, 1.0, &s));
+  EXPECT_NEAR(s, 10, 1e-9);
+  EXPECT_FALSE(path.locate({70, 3.2}, 1.0, &s)) << "A_1 beyond the change is off the path";
+
+  // Traffic on A_0: the change begins as late as A_1 allows (100 - 20 - 1 = 79 m).
+  changes.clear = [](const LaneGeom& to, double pos) {
+    EXPECT_EQ(to.id, "A_0");
+    EXPECT_NEAR(pos, 40, 1e-9);
+    return false;
+  };
+  path = trace_route_path(net, kRoute, plan, "A_1", 40, 200, changes);
+  EXPECT_NEAR(path.hold, 39, 1e-9);
+  EXPECT_NEAR(path.point(10, {}).x, 50, 1e-9);
+  EXPECT_NEAR(path.point(10, {}).y, 3.2, 1e-9);
+  EXPECT_NEAR(path.point(50, {}).x, 99, 1e-9) << "inside the change: where it ends";
+  EXPECT_NEAR(path.point(50, {}).y, 0, 1e-9);
+  EXPECT_DOUBLE_EQ(path.lanes[2].s_begin, 60);
+}
+
 TEST(GroundTruth, LeaderLightAndPathFreeByHand) {
   const RoadNetwork net = straight_network();
   const LanePlan plan = net.lane_plan(kRoute);

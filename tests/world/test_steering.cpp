@@ -9,6 +9,7 @@
 
 #include "../support/test_support.hpp"
 #include "app/settings.hpp"
+#include "core/error.hpp"
 #include "expert/autopilot.hpp"
 #include "world/ego_model.hpp"
 #include "world/lane_contact.hpp"
@@ -163,31 +164,36 @@ TEST(LaneContact, OnLaneOffsetWrongWayOffRoadAndJunction) {
   EXPECT_TRUE(rc.offroad);
 }
 
-// The expert with the wheel drives a sampled task of `town` to its goal, on the road.
-void expert_drives(const std::string& town, uint64_t seed) {
-  test::TempDir dir("cdtest-steer");
+// The expert with the wheel drives `task` to its goal, on the road.
+void expert_drives_task(World& w, const Settings& s, const Task& task, const std::string& what) {
+  const Autopilot expert(s.expert);
+  w.reset(task);
+  StepResult r;
+  double worst = 0;
+  while (r.outcome == Outcome::Running) {
+    r = w.step(expert.act(w));
+    worst = std::max(worst, std::abs(w.road_contact().lateral_error));
+  }
+  EXPECT_EQ(outcome_name(r.outcome), std::string("success")) << what;
+  EXPECT_EQ(w.counters().wrong_way, 0) << what;
+  EXPECT_LT(worst, 1.6) << what << ": the centre left its lane";
+  EXPECT_LT(w.counters().lateral_error_sum / std::max<long>(1, w.counters().lateral_samples), 0.3)
+      << what;
+}
+
+Settings free_settings(const test::TempDir& dir, const std::string& town) {
   Settings s = load_settings(test::write_test_config(dir, "empty"));
   s.world.town = town;
   s.ego.lateral = "free";
+  return s;
+}
+
+// The expert with the wheel drives a sampled task of `town` to its goal, on the road.
+void expert_drives(const std::string& town, uint64_t seed) {
+  test::TempDir dir("cdtest-steer");
+  const Settings s = free_settings(dir, town);
   World w(s);
-  const Autopilot expert(s.expert);
-  const Task task = w.sample_task(seed, 150, 400);
-  w.reset(task);
-  StepResult r;
-  double worst = 0, turned = 0, last = w.ego().pose.heading;
-  while (r.outcome == Outcome::Running) {
-    const Control c = expert.act(w);
-    r = w.step(c);
-    worst = std::max(worst, std::abs(w.road_contact().lateral_error));
-    turned += std::abs(wrap_angle(w.ego().pose.heading - last));
-    last = w.ego().pose.heading;
-  }
-  EXPECT_EQ(outcome_name(r.outcome), std::string("success")) << town << " seed " << seed;
-  EXPECT_EQ(w.counters().wrong_way, 0) << town;
-  EXPECT_LT(worst, 1.6) << town << ": the centre left its lane";
-  EXPECT_LT(w.counters().lateral_error_sum / std::max<long>(1, w.counters().lateral_samples), 0.3)
-      << town;
-  (void)turned;
+  expert_drives_task(w, s, w.sample_task(seed, 150, 400), town + " seed " + std::to_string(seed));
 }
 
 TEST(SteeringExpert, DrivesEveryBuiltInTown) {
@@ -204,6 +210,35 @@ TEST(SteeringExpert, DrivesARandomNetworkItHasNeverSeen) {
        "--default.lanenumber", "1", "--tls.guess", "--no-turnarounds", "true", "-o", net});
   ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
   for (uint64_t seed : {3, 4, 5}) expert_drives(net, seed);
+}
+
+// town-c has two lanes per direction and starts a free ego on the rightmost: routes that turn
+// left from it need a lane change, which the expert makes (SUMO's stand-in follows it to the
+// new lane); SUMO cannot drive such a route for a route-mode ego, which refuses the task.
+TEST(SteeringExpert, ChangesLanesWhereTheRouteNeedsIt) {
+  test::TempDir dir("cdtest-steer-lc");
+  Task task;
+  {
+    const Settings s = free_settings(dir, "town-c");
+    World w(s);
+    for (uint64_t seed = 1; seed < 200 && task.route.empty(); ++seed) {
+      const Task t = w.sample_task(seed, 150, 400);
+      if (!w.network().lane_changes(t.route, t.start_lane).empty()) task = t;
+    }
+    ASSERT_FALSE(task.route.empty()) << "no town-c task with a lane change in 200 seeds";
+    expert_drives_task(w, s, task, "town-c lane change");
+    EXPECT_GE(w.counters().lane_changes,
+              static_cast<int>(w.network().lane_changes(task.route, task.start_lane).size()));
+  }
+  Settings route = free_settings(dir, "town-c");
+  route.ego.lateral = "route";
+  World w(route);
+  try {
+    w.reset(task);
+    FAIL() << "a route-mode ego accepted a task that needs a lane change";
+  } catch (const SimError& e) {
+    EXPECT_NE(std::string(e.what()).find("lane change"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace
