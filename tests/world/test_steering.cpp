@@ -241,5 +241,45 @@ TEST(SteeringExpert, ChangesLanesWhereTheRouteNeedsIt) {
   }
 }
 
+// A car on the lane the ego must join, beside it at the start: the expert does not cut in; it
+// changes only once it is clear of the car (its front more than a car length and a gap ahead),
+// and drives the route to its end.
+TEST(SteeringExpert, ChangesLanesOnlyWhereTheTargetLaneIsClear) {
+  test::TempDir dir("cdtest-steer-lc-gap");
+  const Settings s = free_settings(dir, "town-c");
+  World w(s);
+  Task task;
+  LaneChange first;
+  for (uint64_t seed = 1; seed < 400 && task.route.empty(); ++seed) {
+    const Task t = w.sample_task(seed, 150, 400);
+    const std::vector<LaneChange> ch = w.network().lane_changes(t.route, t.start_lane);
+    if (!ch.empty() && w.network().map.find(ch[0].from)->edge == t.route.front() &&
+        w.network().rightmost_lane(t.route.front()).length - t.start_pos > 60) {
+      task = t;
+      first = ch[0];
+    }
+  }
+  ASSERT_FALSE(task.route.empty()) << "no town-c task changing lanes on its first edge";
+  w.reset(task);
+  const LaneGeom& to = *w.network().map.find(first.to);
+  const std::string car = w.add_scripted_vehicle(first.to, w.ego().lane_pos + 6.0, 0.0);
+  const Autopilot expert(s.expert);
+  StepResult r;
+  // The ego's front ahead of the car's centre, along the new lane, when its footprint first
+  // crosses onto that lane (the first lane invasion).
+  double gap = -1e9;
+  while (r.outcome == Outcome::Running) {
+    r = w.step(expert.act(w));
+    if (r.lane_invasion && gap < -1e8)
+      for (const Actor& a : w.actors())
+        if (a.id == car) gap = w.ego().lane_pos - project_on_lane(to, a.box.center).along;
+  }
+  EXPECT_EQ(outcome_name(r.outcome), std::string("success"));
+  EXPECT_GE(w.counters().lane_changes, 1);
+  ASSERT_GT(gap, -1e8) << "the ego never crossed onto the new lane";
+  // The rule for a stopped car: the ego's length, 3 m and half the car's length.
+  EXPECT_GE(gap, s.ego.length + 3.0 + 2.5);
+}
+
 }  // namespace
 }  // namespace cd
