@@ -127,6 +127,7 @@ void visit_settings(S& st, V&& v) {
   v.number("eval", "sensor_jitter_m", st.eval.sensor_shift.jitter_m, 0, 10);
   v.number("eval", "sensor_ghosts", st.eval.sensor_shift.ghosts, 0, 20);
   v.number("eval", "sensor_fade", st.eval.sensor_shift.fade, 0, 1);
+  v.text("eval", "cim_path", st.eval.cim_path, {});
 
   v.text("vae", "view", st.vae.view, {});
   v.integer("vae", "latents", st.vae.latents, 1, 4096);

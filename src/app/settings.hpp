@@ -79,6 +79,11 @@ struct EvalSettings {
   // and the ground truth never see the shift.
   std::string sensor = "clean";
   SensorShift sensor_shift;
+  // The path a free-steering cim (cim, cim-mlp, cim-entangled) steers along: empty, its route
+  // with the expert's path tracker; or the run folder of a dim or rip model, whose planned path
+  // it steers along (pure pursuit) at the causal speed predictor's speed, as seed 000's
+  // controller merges the imitative model's trajectory with the causal speed.
+  std::string cim_path;
 };
 
 // Cause selection and the causal speed predictor (seed 000 sections 4.2, 5.4.3).

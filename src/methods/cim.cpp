@@ -50,6 +50,7 @@
 #include "diagnostics/cim_pictures.hpp"
 #include "inference/policy_runner.hpp"
 #include "methods/method.hpp"
+#include "runs/dim_run.hpp"
 #include "nn/beta_vae.hpp"
 #include "nn/policy_net.hpp"
 #include "nn/speed_predictor.hpp"
@@ -838,12 +839,14 @@ TrainSummary train_cim(const Settings& settings_in, const TrainRequest& req) {
 namespace {
 
 // The history frames' grey views -> the VAE's mu -> the selected latents (all of them for
-// cim-mlp) -> the speed predictor -> target speed (>= 0) -> SpeedPid (seed 000 eq. 2). The path
-// is the route the ego follows (no lateral control).
+// cim-mlp) -> the speed predictor -> target speed (>= 0) -> SpeedPid (seed 000 eq. 2). A
+// free-steering ego steers along the route (the expert's path tracker) or, with eval.cim_path,
+// along the path a dim/rip model plans (its agent runs beside; only its steer is used).
 class CimAgent : public Agent {
  public:
   CimAgent(const std::string& method, const std::string& dir, const Settings& s, const World* world)
       : method_(method),
+        free_(s.ego.lateral == "free"),
         world_(world),
         run_(require_cim_run(dir, method, {"vae", "causes", "predictor"}, "agent '" + method + "':")),
         vae_(run_.vae.latents),
@@ -874,15 +877,27 @@ class CimAgent : public Agent {
     predictor_->eval();
     input_ = torch::zeros({1, po.variables, po.history});
     view_buf_ = torch::zeros({1, 1, kVaeSize, kVaeSize});
+    if (!s.eval.cim_path.empty()) {
+      if (!free_)
+        throw ConfigError("eval.cim_path is the path a free-steering cim steers along: it needs "
+                          "ego.lateral = \"free\"");
+      const std::optional<DimRun> path_run = read_dim_run(s.eval.cim_path);
+      if (!path_run)
+        throw DataError("eval.cim_path: " + s.eval.cim_path + " holds no dim/rip run (no " +
+                        kDimJson + "; train one with `causaldrive train --method dim`)");
+      path_ = make_agent(path_run->method, s.eval.cim_path, s, world);
+    }
   }
 
   std::string name() const override { return method_; }
   int history() const override { return run_.cim.history; }
   int history_stride() const override { return run_.cim.history_stride; }
+  double goal_distance() const override { return path_ ? path_->goal_distance() : 0.0; }
   void begin_episode() override {
     pid_.reset();
     target_ = std::nan("");
     cache_.clear();
+    if (path_) path_->begin_episode();
   }
 
   Control act(const Observation& obs) override {
@@ -896,11 +911,21 @@ class CimAgent : public Agent {
     }
     target_ = std::max(0.0, static_cast<double>(predictor_->forward(input_).item<float>()));
     Control c = pid_.control(target_, obs.speed);
-    // Its path is the route (seed 000's controller merges an imitative model's path with the
-    // causal speed; here the route stands for that path): a free-steering ego tracks it with
-    // the expert's path tracker.
-    if (world_ && world_->free_lateral()) c.steer = steer_towards_path(*world_);
+    if (!free_) return c;
+    if (path_) {
+      // The planner sees the current frame (its history is 1) and the same odometry and goal.
+      Observation now = obs;
+      now.frames.assign(1, obs.frames.back());
+      c.steer = path_->act(now).steer;
+    } else if (world_) {
+      c.steer = steer_towards_path(*world_);
+    }
     return c;
+  }
+
+  // The path model's own figures (dim/rip: how far its planner moves the plans), if any.
+  nlohmann::json episode_figures() const override {
+    return path_ ? path_->episode_figures() : nlohmann::json::object();
   }
 
   double last_target_speed() const override { return target_; }
@@ -925,7 +950,9 @@ class CimAgent : public Agent {
   }
 
   std::string method_;
+  bool free_;           // ego.lateral = "free": the agent steers
   const World* world_;  // the route's geometry, for a free-steering ego's path tracker
+  std::unique_ptr<Agent> path_;  // eval.cim_path's dim/rip agent: the path it steers along
   CimRunInfo run_;
   GreyView view_;
   std::vector<int> selected_;

@@ -105,6 +105,32 @@ TEST(SteeringAgents, TrainedOnSteeringDataTheyDriveAFreeEgo) {
   EXPECT_EQ(res["summary"]["infrastructure_failures"], 0);
   EXPECT_TRUE(res["episodes"][0].contains("lateral_error_m")) << res.dump();
   EXPECT_GT(res["episodes"][0]["agent"]["plans"].get<double>(), 0.0);
+
+  // cim steers along that dim's planned path (eval.cim_path) at its own causal speed: the dim
+  // agent plans inside cim's episodes (its planner figures are cim's), and a route-mode ego,
+  // which does not steer, refuses the key in one line.
+  test::TinyRun cim({.method = "cim",
+                     .traffic = "empty",
+                     .extra = free + "\n[vae]\nlatents = 16\nepochs = 1\nmax_frames = 300\n"
+                                     "\n[cim]\nmax_causes = 2\n\n[train]\nthreads = 1\n",
+                     .suite = {.traffic = "empty", .scenarios = {"route"}}});
+  const std::string with_path = "\n[eval]\ncim_path = \"" + dim.run() + "\"\n";
+  const std::string path_config =
+      test::write_test_config(cim.dir(), "empty", free + with_path, "path.toml");
+  test::CommandResult r = test::run_cli(
+      test::eval_args(path_config, "cim", cim.run(), cim.suite(), cim.dir() / "path", 1));
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  res = json::parse(test::read_text(cim.dir() / "path/results.json"));
+  ASSERT_EQ(res["episodes"].size(), 1u);
+  EXPECT_EQ(res["summary"]["infrastructure_failures"], 0);
+  EXPECT_TRUE(res["episodes"][0].contains("lateral_error_m")) << res.dump();
+  EXPECT_GT(res["episodes"][0]["agent"]["plans"].get<double>(), 0.0) << res.dump();
+  const std::string route_config =
+      test::write_test_config(cim.dir(), "empty", with_path, "route.toml");
+  r = test::run_cli(
+      test::eval_args(route_config, "cim", cim.run(), cim.suite(), cim.dir() / "route", 1));
+  test::expect_one_line_error(r, "needs ego.lateral");
+  EXPECT_FALSE(std::filesystem::exists(cim.dir() / "route/results.json"));
 }
 
 TEST(SteeringAgents, APolicyTrainedWithoutSteerIsRefusedOnAFreeEgo) {
