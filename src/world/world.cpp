@@ -889,6 +889,22 @@ std::string World::add_scripted_vehicle(const std::string& lane_id, double pos, 
   return id;
 }
 
+std::string World::add_scripted_pedestrian(const std::string& edge, double pos) {
+  std::string id = "scripted_ped" + std::to_string(scripted_++);
+  sumo_call("cannot add scripted pedestrian", [&] {
+    libsumo::Person::add(id, edge, pos, libsumo::DEPARTFLAG_NOW);
+    libsumo::Person::appendWaitingStage(id, 1e6);
+  });
+  return id;
+}
+
+void World::place_pedestrian(const std::string& id, Vec2 at) {
+  sumo_call("cannot place pedestrian " + id, [&] {
+    // keepRoute 2: exactly there, off the pedestrian network if need be.
+    libsumo::Person::moveToXY(id, "", at.x, at.y, libsumo::INVALID_DOUBLE_VALUE, 2);
+  });
+}
+
 void World::set_vehicle_speed(const std::string& id, double speed) {
   sumo_call("cannot set speed of " + id, [&] { libsumo::Vehicle::setSpeed(id, speed); });
 }

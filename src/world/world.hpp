@@ -146,6 +146,11 @@ class World {
   // the per-step collision and red-light state.
   std::string add_scripted_vehicle(const std::string& lane_id, double pos, double speed);
   void set_vehicle_speed(const std::string& id, double speed);
+  // A scripted pedestrian: added on an edge's sidewalk (in the world after the next step), then
+  // put anywhere, the road included, by place_pedestrian for the following step (SUMO does not
+  // keep a person off its network: place it before every step it is to stand there).
+  std::string add_scripted_pedestrian(const std::string& edge, double pos);
+  void place_pedestrian(const std::string& id, Vec2 at);
 
  private:
   struct Sumo;  // what only libsumo knows of this session (world.cpp)

@@ -57,6 +57,11 @@ bool is_grid_edge(const std::string& e) {
 }
 
 // Resets `w` on the first task (seeds 0, 1, ...) whose first route lane is a straight normal
+// Adds a pedestrian standing `ahead` metres in front of the ego's centre, on its lane, and
+// steps twice with the ego braking so that it is there. Returns its id, or "" (with a test
+// failure) when SUMO did not put it there.
+std::string add_pedestrian_ahead(World& w, double ahead);
+
 // lane with at least `room` metres ahead of the ego's front (and, if asked, on a grid edge).
 // Fails the test when none is found.
 Task reset_with_room(World& w, double room, bool grid_edge = false) {
@@ -91,6 +96,24 @@ std::string add_vehicle(World& w, const std::string& lane, double pos, double sp
     return "";
   }
   return id;
+}
+
+std::string add_pedestrian_ahead(World& w, double ahead) {
+  const Pose2 e = w.ego().pose;
+  const Vec2 at = e.pos + Vec2{std::cos(e.heading), std::sin(e.heading)} * ahead;
+  const LaneGeom* lane = w.map().find(w.ego().lane);
+  const std::string id = w.add_scripted_pedestrian(lane->edge, 0.0);
+  EXPECT_EQ(w.step(kBrake).outcome, Outcome::Running);
+  w.place_pedestrian(id, at);
+  EXPECT_EQ(w.step(kBrake).outcome, Outcome::Running);
+  for (const Actor& a : w.actors())
+    if (a.id == id) {
+      EXPECT_TRUE(a.pedestrian);
+      EXPECT_LT((a.box.center - at).norm(), 1.0) << "the pedestrian is not where it was put";
+      return id;
+    }
+  ADD_FAILURE() << "scripted pedestrian " << id << " is not in the world after two steps";
+  return "";
 }
 
 // Unit vectors ahead and to the left of the ego.
@@ -446,6 +469,26 @@ TEST(WorldCollision, StoppedEgoRearEndedWasStruck) {
   EXPECT_EQ(r.collided_with, id);
   EXPECT_EQ(r.collision_kind, "vehicle");
   EXPECT_FALSE(r.ego_struck) << "a stopped ego hit from behind did not strike";
+}
+
+TEST(WorldCollision, FullThrottleIntoAPedestrianIsAPedestrianCollision) {
+  World w(test_settings());
+  ASSERT_FALSE(reset_with_room(w, 45).route.empty());
+  const Pose2 e = w.ego().pose;
+  const Vec2 at = e.pos + Vec2{std::cos(e.heading), std::sin(e.heading)} * 20.0;
+  const std::string id = add_pedestrian_ahead(w, 20);
+  ASSERT_FALSE(id.empty());
+  StepResult r;
+  int steps = 0;
+  for (; steps < 100 && r.outcome == Outcome::Running; ++steps) {
+    w.place_pedestrian(id, at);  // it stands there (placed again each step)
+    r = w.step(kThrottle);
+  }
+  ASSERT_EQ(r.outcome, Outcome::Collision) << "no collision after " << steps << " steps";
+  EXPECT_EQ(r.collided_with, id);
+  EXPECT_EQ(r.collision_kind, "pedestrian");
+  EXPECT_TRUE(r.ego_struck) << "the ego ran into a standing pedestrian";
+  EXPECT_GT(steps, 15) << "about 15 m of gap at full throttle take about 3 s";
 }
 
 TEST(WorldCollision, BrakingToAStopJustBehindIsNoCollision) {
