@@ -208,6 +208,11 @@ void visit_settings(S& st, V&& v) {
   v.integer("mujoco", "eval_episodes", st.mujoco.eval_episodes, 1, 1000000);
   v.integer("mujoco", "planner_samples", st.mujoco.planner_samples, 0, 100000);
   v.integer("mujoco", "planner_horizon", st.mujoco.planner_horizon, 0, 100000);
+  v.integer("mujoco", "planner_iterations", st.mujoco.planner_iterations, 0, 1000);
+  v.number("mujoco", "planner_sigma", st.mujoco.planner_sigma, 0, 10);
+  v.number("mujoco", "planner_temperature", st.mujoco.planner_temperature, 0, 1e6);
+  v.number("mujoco", "planner_smoothing", st.mujoco.planner_smoothing, -1, 0.999);
+  v.number("mujoco", "planner_terminal_steps", st.mujoco.planner_terminal_steps, -1, 1e6);
   v.integer("mujoco.episodes", "halfcheetah", st.mujoco.episodes.halfcheetah, 1, 1000000);
   v.integer("mujoco.episodes", "hopper", st.mujoco.episodes.hopper, 1, 1000000);
   v.integer("mujoco.episodes", "ant", st.mujoco.episodes.ant, 1, 1000000);

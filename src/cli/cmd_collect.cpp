@@ -44,12 +44,13 @@ void collect_mujoco(const CollectArgs& a) {
   o.max_steps = a.max_steps > 0 ? a.max_steps : m.max_steps;
   o.noise = {a.noise || m.noise.enabled, m.noise.rate, m.noise.min_steps, m.noise.max_steps,
              m.noise.sigma};
-  o.planner.samples = a.planner_samples > 0 ? a.planner_samples : m.planner_samples;
-  o.planner.horizon = a.planner_horizon > 0 ? a.planner_horizon : m.planner_horizon;
-  o.planner.iterations = a.planner_iterations;
-  o.planner.sigma = a.planner_sigma;
-  o.planner.temperature = a.planner_temperature;
-  o.planner.smoothing = a.planner_smoothing;
+  o.planner = mj::planner_options(m);  // the flags override the [mujoco] keys
+  if (a.planner_samples > 0) o.planner.samples = a.planner_samples;
+  if (a.planner_horizon > 0) o.planner.horizon = a.planner_horizon;
+  if (a.planner_iterations > 0) o.planner.iterations = a.planner_iterations;
+  if (a.planner_sigma > 0) o.planner.sigma = a.planner_sigma;
+  if (a.planner_temperature > 0) o.planner.temperature = a.planner_temperature;
+  if (a.planner_smoothing >= 0) o.planner.smoothing = a.planner_smoothing;
   const mj::CollectReport r = mj::collect(o);
   double mean = 0;
   for (double v : r.returns) mean += v / std::max<size_t>(1, r.returns.size());

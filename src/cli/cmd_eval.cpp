@@ -43,8 +43,7 @@ void eval_mujoco(const EvalArgs& a) {
   o.workers = a.workers > 0 ? a.workers : s.mujoco.workers;
   if (a.seed >= 0) o.seed = static_cast<uint64_t>(a.seed);
   o.max_steps = a.max_steps > 0 ? a.max_steps : s.mujoco.max_steps;
-  o.planner.samples = s.mujoco.planner_samples;
-  o.planner.horizon = s.mujoco.planner_horizon;
+  o.planner = mj::planner_options(s.mujoco);
   o.quiet = a.quiet;
   const mj::EvalReport r = mj::evaluate(o);
   std::printf("%s", mj::eval_table(r.results).c_str());

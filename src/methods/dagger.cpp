@@ -190,8 +190,7 @@ Rollouts mujoco_rollouts(const Settings& settings, const std::string& data_dir, 
   o.width = first.width;
   o.height = first.height;
   o.max_steps = settings.mujoco.max_steps;
-  o.planner.samples = settings.mujoco.planner_samples;
-  o.planner.horizon = settings.mujoco.planner_horizon;
+  o.planner = mj::planner_options(settings.mujoco);
   o.quiet = quiet;
   const std::string env = first.env;
   o.driver = [policy, env, beta] { return std::make_unique<MujocoDaggerDriver>(policy, env, beta); };

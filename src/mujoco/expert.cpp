@@ -8,6 +8,18 @@
 
 namespace cd::mj {
 
+PlannerOptions planner_options(const MujocoSettings& m) {
+  PlannerOptions o;
+  o.samples = m.planner_samples;
+  o.horizon = m.planner_horizon;
+  o.iterations = m.planner_iterations;
+  o.sigma = m.planner_sigma;
+  o.temperature = m.planner_temperature;
+  o.smoothing = m.planner_smoothing;
+  o.terminal_steps = m.planner_terminal_steps;
+  return o;
+}
+
 PlannerOptions planner_defaults(const std::string& env, PlannerOptions o) {
   struct Default {
     const char* env;

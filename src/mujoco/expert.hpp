@@ -17,6 +17,7 @@
 
 #include "core/rng.hpp"
 #include "mujoco/env.hpp"
+#include "mujoco/mujoco_settings.hpp"
 
 namespace cd::mj {
 
@@ -44,6 +45,8 @@ struct PlannerOptions {
 
 // The options with the env's defaults filled in where a field is 0.
 PlannerOptions planner_defaults(const std::string& env, PlannerOptions options = {});
+// The options the [mujoco] planner_* settings give (0 / < 0: the env's default).
+PlannerOptions planner_options(const MujocoSettings& m);
 
 class PlannerExpert : public Expert {
  public:

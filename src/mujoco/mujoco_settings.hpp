@@ -31,8 +31,15 @@ struct MujocoSettings {
   PerEnvCount episodes;
   int eval_episodes = 10;          // eval --env: seeded episodes
   MujocoNoiseSettings noise;       // collect --env's noise injection (labels stay the expert's)
-  int planner_samples = 0;         // the expert planner; 0: the env's default
-  int planner_horizon = 0;
+  // The expert planner (mj::PlannerOptions; collect --env's --planner-* flags override them):
+  // 0 (smoothing, terminal_steps: < 0) takes the env's default.
+  int planner_samples = 0;         // rollouts per iteration
+  int planner_horizon = 0;         // env steps per rollout
+  int planner_iterations = 0;      // refinements per query
+  double planner_sigma = 0;        // exploration noise, fraction of the half ctrlrange
+  double planner_temperature = 0;  // weight temperature
+  double planner_smoothing = -1;   // time correlation of the noise (0 white, < 1)
+  double planner_terminal_steps = -1;  // extra weight of a rollout's last reward
 };
 
 }  // namespace cd

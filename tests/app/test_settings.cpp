@@ -304,6 +304,10 @@ TEST(ConfigErrors, MujocoKeysAreChecked) {
   EXPECT_TRUE(has(msg, "mujoco.noise.max_steps")) << msg;
   msg = config_error("[model]\nhead = \"mlp\"\n");
   EXPECT_TRUE(has(msg, "model.head")) << msg;
+  msg = config_error("[mujoco]\nplanner_smoothing = 1.0\n");
+  EXPECT_TRUE(has(msg, "mujoco.planner_smoothing")) << msg;
+  msg = config_error("[mujoco]\nplanner_sigma = -0.5\n");
+  EXPECT_TRUE(has(msg, "mujoco.planner_sigma")) << msg;
 }
 
 // The Python module's settings dict: keys set over a base, unknown keys and bad values refused

@@ -13,6 +13,7 @@
 #include "../support/test_support.hpp"
 #include "core/error.hpp"
 #include "data/mujoco_episode.hpp"
+#include "app/settings.hpp"
 #include "mujoco/collect.hpp"
 
 #ifndef CD_PYTHON
@@ -190,6 +191,36 @@ TEST(MujocoExpert, QueryableAtAnyStateWithinBoundsAndSeeded) {
   for (double v : x) EXPECT_TRUE(v >= -1.0 && v <= 1.0) << v;
   EXPECT_EQ(a.simulated_steps(), 8 * 4);
   EXPECT_NE(a.describe().find("mppi samples=8 horizon=4"), std::string::npos) << a.describe();
+}
+
+// The [mujoco] planner_* keys are the planner's options (collect, eval's expert and dagger
+// read them through planner_options); their defaults leave every env default in place.
+TEST(MujocoExpert, PlannerKeysOfTheConfigReachThePlanner) {
+  test::TempDir dir("cdtest-mj-planner");
+  const std::string path = dir / "p.toml";
+  test::write_text(path,
+                   "[mujoco]\nplanner_samples = 4\nplanner_horizon = 5\nplanner_iterations = 3\n"
+                   "planner_sigma = 0.2\nplanner_temperature = 0.5\nplanner_smoothing = 0.8\n"
+                   "planner_terminal_steps = 7\n");
+  const PlannerOptions o = planner_options(load_settings(path).mujoco);
+  EXPECT_EQ(o.samples, 4);
+  EXPECT_EQ(o.horizon, 5);
+  EXPECT_EQ(o.iterations, 3);
+  EXPECT_EQ(o.sigma, 0.2);
+  EXPECT_EQ(o.temperature, 0.5);
+  EXPECT_EQ(o.smoothing, 0.8);
+  EXPECT_EQ(o.terminal_steps, 7.0);
+  for (const char* env : {"halfcheetah", "hopper", "reacher"}) {
+    const PlannerOptions a = planner_defaults(env, planner_options(Settings{}.mujoco));
+    const PlannerOptions b = planner_defaults(env);
+    EXPECT_EQ(a.samples, b.samples) << env;
+    EXPECT_EQ(a.horizon, b.horizon) << env;
+    EXPECT_EQ(a.iterations, b.iterations) << env;
+    EXPECT_EQ(a.sigma, b.sigma) << env;
+    EXPECT_EQ(a.temperature, b.temperature) << env;
+    EXPECT_EQ(a.smoothing, b.smoothing) << env;
+    EXPECT_EQ(a.terminal_steps, b.terminal_steps) << env;
+  }
 }
 
 TEST(MujocoExpert, DefaultsFillOnlyWhatIsUnsetAndBadSmoothingIsOneLine) {
