@@ -14,6 +14,7 @@
 # an interrupted run is continued by running the same command again; finished evaluations and
 # tables are also kept in results/cim_paper (committed, scripts/paper_lib.sh). Knobs:
 #   CD      the causaldrive binary        (default: build/causaldrive)
+#   CONFIG  the experiment config          (default: configs/cim_paper.toml)
 #   OUT     the experiment folder          (default: runs/cim_paper)
 #   KEEP    the kept results               (default: results/cim_paper)
 #   SEEDS   training seeds                 (default: "0 1 2")
@@ -25,7 +26,7 @@ set -euo pipefail
 
 cd "$(dirname "$0")/.."
 CD=${CD:-build/causaldrive}
-CONFIG=configs/cim_paper.toml
+CONFIG=${CONFIG:-configs/cim_paper.toml}
 OUT=${OUT:-runs/cim_paper}
 SEEDS=${SEEDS:-"0 1 2"}
 TASKS=${TASKS:-100}
