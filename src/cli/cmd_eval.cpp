@@ -14,7 +14,7 @@ namespace cd::cli {
 namespace {
 
 struct EvalArgs {
-  std::string config, agent, checkpoint, suite, out, label, sensor;
+  std::string config, agent, checkpoint, suite, out, label, sensor, cim_path;
   int workers = 0, trials = 0;
   bool list = false, quiet = false, trace = false;
   // MuJoCo-Image (--env)
@@ -29,6 +29,7 @@ void eval_mujoco(const EvalArgs& a) {
   for (const auto& [given, flag] : {std::pair{!a.suite.empty(), "--suite"},
                                     {a.trials > 0, "--trials"},
                                     {!a.sensor.empty(), "--sensor"},
+                                    {!a.cim_path.empty(), "--cim-path"},
                                     {a.trace, "--trace"}}) {
     if (given) throw ConfigError(std::string(flag) + " is a driving option; it does not apply with --env");
   }
@@ -87,6 +88,9 @@ void add_eval(CLI::App& app) {
                   "(eval.sensor)")
       ->check(CLI::IsMember({"clean", "shifted"}));
   sub->add_option("--label", a->label, "row name in tables (default: the agent name)");
+  sub->add_option("--cim-path", a->cim_path,
+                  "free-steering cim: the dim/rip run whose planned path it steers along "
+                  "(eval.cim_path)");
   CLI::Option* env = sub->add_option(
       "--env", a->env,
       "MuJoCo-Image environment (halfcheetah, hopper, ant, reacher, humanoid) instead of a "
@@ -116,6 +120,7 @@ void add_eval(CLI::App& app) {
     if (a->trials > 0) s.eval.trials = a->trials;
     if (!a->out.empty()) s.eval.out = a->out;
     if (!a->sensor.empty()) s.eval.sensor = a->sensor;
+    if (!a->cim_path.empty()) s.eval.cim_path = a->cim_path;
     EvalRequest req;
     req.agent = a->agent;
     req.checkpoint = a->checkpoint;

@@ -131,6 +131,12 @@ TEST(SteeringAgents, TrainedOnSteeringDataTheyDriveAFreeEgo) {
       test::eval_args(route_config, "cim", cim.run(), cim.suite(), cim.dir() / "route", 1));
   test::expect_one_line_error(r, "needs ego.lateral");
   EXPECT_FALSE(std::filesystem::exists(cim.dir() / "route/results.json"));
+  // --cim-path sets the key; a folder without a dim/rip run is refused in one line.
+  r = test::run_cli(test::with(
+      test::eval_args(cim.config(), "cim", cim.run(), cim.suite(), cim.dir() / "bad", 1),
+      {"--cim-path", bc.run()}));
+  test::expect_one_line_error(r, "holds no dim/rip run");
+  EXPECT_FALSE(std::filesystem::exists(cim.dir() / "bad/results.json"));
 }
 
 TEST(SteeringAgents, APolicyTrainedWithoutSteerIsRefusedOnAFreeEgo) {
