@@ -70,7 +70,8 @@ suite_of() {
 # shifted), then `report --metrics METRICS` over them into $OUT/TABLE.md and .csv (kept). An agent is
 # a method name, "cs" (nothing trained: one run), or LABEL=METHOD for a run trained under
 # another label (an ablation: $OUT/train/seedS/LABEL holds a METHOD run); "NAME-fewshot" runs
-# are the NAME method.
+# are the NAME method. With CIM_PATH=LABEL set, cim agents steer along the path of the dim/rip
+# run $OUT/train/seedS/LABEL of their own seed (eval --cim-path; a free-steering ego).
 eval_agents() {
   local table=$1 metrics=$2 sensor=$3 suites=$4; shift 4
   local dirs=() tag=""
@@ -87,9 +88,11 @@ eval_agents() {
         continue
       fi
       for s in $SEEDS; do
+        local path=()
+        [[ $kind == cim* && -n ${CIM_PATH:-} ]] && path=(--cim-path "$OUT/train/seed$s/$CIM_PATH")
         kept_eval "$OUT/eval/$label/seed$s/$name$tag" --config "$CONFIG" --agent "$kind" \
           --checkpoint "$OUT/train/seed$s/$label" --label "$label" --suite "$suite" \
-          --trials "$TRIALS" --workers "$WORKERS" --sensor "$sensor" --quiet
+          --trials "$TRIALS" --workers "$WORKERS" --sensor "$sensor" --quiet "${path[@]}"
         dirs+=("$KEPT")
       done
     done

@@ -1,0 +1,142 @@
+#!/usr/bin/env bash
+# Steering (ego.lateral = "free", issue 13): the expert and the headline tables of both seeds
+# with the agent at the wheel, beside the route-mode runs of scripts/cim_paper.sh and
+# scripts/residual_paper.sh.
+#
+#   scripts/steering_paper.sh expert    # the expert, route vs free, town-a/b/c regular and dense
+#                                       # (built-in suites), and free on town-c suites drawn in
+#                                       # free mode (routes that need lane changes)
+#   scripts/steering_paper.sh bench     # bench world in both modes, one run each
+#   scripts/steering_paper.sh train     # free-steering town-a data (steer, augmented frames) and
+#                                       # the models of both tables, all seeds
+#   scripts/steering_paper.sh table1    # seed 000's table 1 (cs, dim, rip, cim steering along its
+#                                       # seed's dim path) on town-a/b regular, dense, stopgo
+#   scripts/steering_paper.sh dense     # seed 001's comparison (bc-so, bc-oh, residual, dagger, hd,
+#                                       # fca, keyframe) on town-a/b regular and dense
+#   scripts/steering_paper.sh all       # the five above in order
+#
+# Every step resumes (collect, train and eval skip what their folders hold) and finished
+# evaluations and tables are kept in results/steering (scripts/paper_lib.sh). The experiment
+# configs are the papers' configs with [ego] lateral = "free" and a share of augmented frames
+# added ($OUT/configs). Knobs:
+#   CD       the causaldrive binary        (default: build/causaldrive)
+#   OUT      the experiment folder          (default: runs/steering)
+#   KEEP     the kept results               (default: results/steering)
+#   SEEDS    training seeds                 (default: "0 1 2")
+#   TASKS    tasks per suite; 25 uses the built-in suites (default: 25)
+#   TRIALS   trials per task                (default: 1)
+#   WORKERS  evaluation workers             (default: 2)
+#   AUGMENT  collect.augment.fraction of the free data (default: 0.3)
+#   METHODS  seed 001's methods of train and dense (default: all seven)
+set -euo pipefail
+
+cd "$(dirname "$0")/.."
+CD=${CD:-build/causaldrive}
+OUT=${OUT:-runs/steering}
+SEEDS=${SEEDS:-"0 1 2"}
+TASKS=${TASKS:-25}
+TRIALS=${TRIALS:-1}
+WORKERS=${WORKERS:-2}
+AUGMENT=${AUGMENT:-0.3}
+METHODS=${METHODS:-"bc-so bc-oh residual dagger hd fca keyframe"}
+CONFIG=configs/quickstart.toml  # the expert and bench steps; the tables set their own
+source scripts/paper_lib.sh
+
+# free_config NAME BASE: BASE with a free-steering ego and augmented frames, as $OUT/configs/NAME.
+free_config() {
+  local file=$OUT/configs/$1.toml
+  mkdir -p "$OUT/configs"
+  { cat "$2"; printf '\n[ego]\nlateral = "free"\n\n[collect.augment]\nfraction = %s\n' "$AUGMENT"; } \
+    > "$file.tmp" && mv "$file.tmp" "$file"
+  echo "$file"
+}
+
+# The expert and the world in both modes use the quickstart settings otherwise.
+mode_config() {  # MODE -> a config
+  local file=$OUT/configs/expert-$1.toml
+  mkdir -p "$OUT/configs"
+  printf '[ego]\nlateral = "%s"\n' "$1" > "$file.tmp" && mv "$file.tmp" "$file"
+  echo "$file"
+}
+
+expert_step() {
+  local dirs=() mode name suite
+  for mode in route free; do
+    for name in town-a-regular town-a-dense town-b-regular town-b-dense town-c-regular \
+                town-c-dense; do
+      suite=$(suite_of "$name")
+      kept_eval "$OUT/eval/expert-$mode/$name" --config "$(mode_config "$mode")" --agent expert \
+        --label "expert-$mode" --suite "$suite" --trials "$TRIALS" --workers "$WORKERS" --quiet
+      dirs+=("$KEPT")
+    done
+  done
+  # Routes that need lane changes: drawn by a free ego (it starts on the rightmost lane).
+  for traffic in regular dense; do
+    local file=$KEEP/suites/town-c-$traffic-free.json
+    if [[ ! -f $file ]]; then
+      mkdir -p "$KEEP/suites"
+      "$CD" suite --config "$(mode_config free)" --name "town-c-$traffic-free" --town town-c \
+        --traffic "$traffic" --tasks "$TASKS" --trials "$TRIALS" --seed 4242 --out "$file" >&2
+    fi
+    kept_eval "$OUT/eval/expert-free/town-c-$traffic-free" --config "$(mode_config free)" \
+      --agent expert --label expert-free --suite "$file" --workers "$WORKERS" --quiet
+    dirs+=("$KEPT")
+  done
+  kept_report expert outcomes,lateral "${dirs[@]}"
+  cat "$OUT/expert.md"
+}
+
+bench_step() {
+  local mode
+  for mode in route free; do
+    local f=$OUT/bench/world-$mode.json
+    [[ -f $KEEP/bench/world-$mode.json ]] && continue
+    mkdir -p "$(dirname "$f")"
+    "$CD" bench world --config "$(mode_config "$mode")" --steps 40000 --slices 20 --json \
+      > "$f.tmp" && mv "$f.tmp" "$f"
+    keep_file "$f"
+  done
+  cat "$KEEP"/bench/world-*.json
+}
+
+train_step() {
+  local cim_cfg res_cfg s m
+  cim_cfg=$(free_config cim configs/cim_paper.toml)
+  res_cfg=$(free_config residual configs/residual_paper.toml)
+  # Both papers' configs collect the same town-a data (120 noisy expert episodes, seed 100).
+  "$CD" collect --config "$res_cfg" --out "$OUT/data/town-a"
+  for s in $SEEDS; do
+    for m in cim dim rip; do
+      "$CD" train --config "$cim_cfg" --method "$m" --data "$OUT/data/town-a" --seed "$s" \
+        --out "$OUT/cim/train/seed$s/$m"
+    done
+    for m in $METHODS; do
+      "$CD" train --config "$res_cfg" --method "$m" --data "$OUT/data/town-a" --seed "$s" \
+        --out "$OUT/residual/train/seed$s/$m"
+    done
+  done
+}
+
+case ${1:-} in
+  expert) expert_step ;;
+  bench) bench_step ;;
+  train) train_step ;;
+  table1)
+    CONFIG=$(free_config cim configs/cim_paper.toml) OUT=$OUT/cim KEEP=$KEEP/cim CIM_PATH=dim \
+      eval_agents table1 all clean \
+      "town-a-regular town-a-dense town-a-stopgo town-b-regular town-b-dense town-b-stopgo" \
+      cs dim rip cim
+    ;;
+  dense)
+    CONFIG=$(free_config residual configs/residual_paper.toml) OUT=$OUT/residual \
+      KEEP=$KEEP/residual eval_agents dense failure,lateral clean \
+      "town-a-regular town-a-dense town-b-regular town-b-dense" $METHODS
+    ;;
+  all)
+    for step in expert bench train table1 dense; do "$0" "$step"; done
+    ;;
+  *)
+    sed -n '2,30p' "$0" | sed 's/^# \{0,1\}//'
+    exit 2
+    ;;
+esac
