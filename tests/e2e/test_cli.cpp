@@ -132,6 +132,27 @@ TEST(CliHelp, EverySubcommandHasHelp) {
     EXPECT_TRUE(has(collect.out, opt)) << "collect --help should mention " << opt;
 }
 
+// A bad command line (unknown option, bad value, missing subcommand) is one line on stderr
+// naming the problem, with exit status 2; --help and --version still succeed.
+TEST(CliErrors, BadCommandLinesAreOneLineUsageErrors) {
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"eval", "--bogus"}, "--bogus"},
+      {{"collect", "--episodes", "-3"}, "-3 is not a non-negative number"},
+      {{"collect", "--episodes", "x"}, "x is not a non-negative number"},
+      {{"eval", "--sensor", "foggy"}, "foggy"},
+      {{}, "subcommand"},
+  };
+  for (const auto& [args, needle] : cases) {
+    const CommandResult r = test::run_cli(args);
+    EXPECT_TRUE(r.exited && r.exit_code == 2) << r.describe();
+    EXPECT_EQ(test::split_lines(r.err).size(), 1u) << r.describe();
+    EXPECT_TRUE(has(r.err, needle)) << r.describe();
+    EXPECT_TRUE(has(r.err, "causaldrive: error:")) << r.describe();
+  }
+  const CommandResult v = test::run_cli({"--version"});
+  EXPECT_TRUE(v.exited && v.exit_code == 0) << v.describe();
+}
+
 TEST(CliTown, ListShowsTheBuiltInTowns) {
   CommandResult r = test::run_cli({"town", "--list"});
   ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
