@@ -588,7 +588,7 @@ StepResult World::step(const Control& c) {
     const double h = free_pose_.heading;
     const Vec2 front = free_pose_.pos + Vec2{std::cos(h), std::sin(h)} * (0.5 * config_.ego.length);
     double s = 0;
-    if (follow_lane_change())
+    if (follow_lane_change(front))
       sumo_speed = v1;
     else if (path_.locate(front, kPathMatchWidth, &s))
       sumo_speed = std::clamp(s / config_.world.dt, 0.0, config_.ego.max_speed);
@@ -609,7 +609,7 @@ StepResult World::step(const Control& c) {
   return r;
 }
 
-bool World::follow_lane_change() {
+bool World::follow_lane_change(Vec2 front) {
   const LaneGeom* on = net_->map.find(ego_.lane);
   if (!on || on->internal) return false;
   auto it = net_->edge_lanes.find(on->edge);
@@ -627,8 +627,6 @@ bool World::follow_lane_change() {
   if (!best || best == on) return false;
   // Its front where the bicycle's front projects on the new lane, less this step's travel
   // (the step's setSpeed moves it on).
-  const double h = free_pose_.heading;
-  const Vec2 front = free_pose_.pos + Vec2{std::cos(h), std::sin(h)} * (0.5 * config_.ego.length);
   const double along = project_on_lane(*best, front).along - free_speed_ * config_.world.dt;
   const double pos = std::clamp(along, std::min(config_.ego.length, best->length), best->length);
   sumo_call("cannot move the ego to lane " + best->id,

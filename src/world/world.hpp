@@ -161,8 +161,9 @@ class World {
   bool add_background_car(const std::string& id);
   void insert_ego();
   // Free steering: moves the SUMO stand-in to the lane of its edge that the bicycle's centre
-  // is on, when that is another lane (a lane change). Returns whether it moved.
-  bool follow_lane_change();
+  // is on, when that is another lane (a lane change), its front beside the bicycle's `front`.
+  // Returns whether it moved.
+  bool follow_lane_change(Vec2 front);
   // Is the lane `to` free of cars around lane position `pos`, so that the ego may change onto
   // it now?
   bool lane_change_clear(const LaneGeom& to, double pos) const;

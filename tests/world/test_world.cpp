@@ -57,10 +57,9 @@ bool is_grid_edge(const std::string& e) {
 }
 
 // Resets `w` on the first task (seeds 0, 1, ...) whose first route lane is a straight normal
-// Adds a pedestrian standing `ahead` metres in front of the ego's centre, on its lane, and
-// steps twice with the ego braking so that it is there. Returns its id, or "" (with a test
-// failure) when SUMO did not put it there.
-std::string add_pedestrian_ahead(World& w, double ahead);
+// Adds a pedestrian standing at `at` and steps twice with the ego braking so that it is there.
+// Returns its id, or "" (with a test failure) when SUMO did not put it there.
+std::string add_pedestrian(World& w, Vec2 at);
 
 // lane with at least `room` metres ahead of the ego's front (and, if asked, on a grid edge).
 // Fails the test when none is found.
@@ -98,9 +97,7 @@ std::string add_vehicle(World& w, const std::string& lane, double pos, double sp
   return id;
 }
 
-std::string add_pedestrian_ahead(World& w, double ahead) {
-  const Pose2 e = w.ego().pose;
-  const Vec2 at = e.pos + Vec2{std::cos(e.heading), std::sin(e.heading)} * ahead;
+std::string add_pedestrian(World& w, Vec2 at) {
   const LaneGeom* lane = w.map().find(w.ego().lane);
   const std::string id = w.add_scripted_pedestrian(lane->edge, 0.0);
   EXPECT_EQ(w.step(kBrake).outcome, Outcome::Running);
@@ -475,8 +472,8 @@ TEST(WorldCollision, FullThrottleIntoAPedestrianIsAPedestrianCollision) {
   World w(test_settings());
   ASSERT_FALSE(reset_with_room(w, 45).route.empty());
   const Pose2 e = w.ego().pose;
-  const Vec2 at = e.pos + Vec2{std::cos(e.heading), std::sin(e.heading)} * 20.0;
-  const std::string id = add_pedestrian_ahead(w, 20);
+  const Vec2 at = e.pos + Vec2{std::cos(e.heading), std::sin(e.heading)} * 20.0;  // on its lane
+  const std::string id = add_pedestrian(w, at);
   ASSERT_FALSE(id.empty());
   StepResult r;
   int steps = 0;
