@@ -59,12 +59,25 @@ mode_config() {  # MODE -> a config
   echo "$file"
 }
 
+# drawn_suite MODE TRAFFIC: a town-c suite drawn by a MODE ego (seed 4242), kept in $KEEP/suites.
+drawn_suite() {
+  local file=$KEEP/suites/town-c-$2-$1.json
+  if [[ ! -f $file ]]; then
+    mkdir -p "$KEEP/suites"
+    "$CD" suite --config "$(mode_config "$1")" --name "town-c-$2-$1" --town town-c \
+      --traffic "$2" --tasks "$TASKS" --trials "$TRIALS" --seed 4242 --out "$file" >&2
+  fi
+  echo "$file"
+}
+
 expert_step() {
   local dirs=() mode name suite
   for mode in route free; do
     for name in town-a-regular town-a-dense town-b-regular town-b-dense town-c-regular \
                 town-c-dense; do
       suite=$(suite_of "$name")
+      # town-c has no built-in dense suite: one drawn by a route-mode ego, as the built-in ones.
+      [[ $name == town-c-dense ]] && suite=$(drawn_suite route dense)
       kept_eval "$OUT/eval/expert-$mode/$name" --config "$(mode_config "$mode")" --agent expert \
         --label "expert-$mode" --suite "$suite" --trials "$TRIALS" --workers "$WORKERS" --quiet
       dirs+=("$KEPT")
@@ -72,12 +85,8 @@ expert_step() {
   done
   # Routes that need lane changes: drawn by a free ego (it starts on the rightmost lane).
   for traffic in regular dense; do
-    local file=$KEEP/suites/town-c-$traffic-free.json
-    if [[ ! -f $file ]]; then
-      mkdir -p "$KEEP/suites"
-      "$CD" suite --config "$(mode_config free)" --name "town-c-$traffic-free" --town town-c \
-        --traffic "$traffic" --tasks "$TASKS" --trials "$TRIALS" --seed 4242 --out "$file" >&2
-    fi
+    local file
+    file=$(drawn_suite free "$traffic")
     kept_eval "$OUT/eval/expert-free/town-c-$traffic-free" --config "$(mode_config free)" \
       --agent expert --label expert-free --suite "$file" --workers "$WORKERS" --quiet
     dirs+=("$KEPT")
