@@ -220,7 +220,11 @@ RoadNetwork read_road_network(const std::string& path) {
 // What only libsumo knows of this session.
 struct World::Sumo {
   // Road users within view_radius after the last step (SUMO's context subscription).
+  // Cars report position, angle and speed; persons also their waiting time, which marks them.
   std::map<std::string, std::map<int, std::shared_ptr<libsumo::TraCIResult>>> nearby;
+  // A car's length and width, asked once per car and episode: they never change, and leaving
+  // them out of the subscription saves two results per car and step.
+  std::unordered_map<std::string, std::pair<double, double>> car_sizes;
   std::unordered_map<std::string, std::string> tls_states;  // this step's light states
   long tls_cache_step = -1;
 };
@@ -386,6 +390,7 @@ void World::reset(const Task& task) {
   with_sumo_errors("cannot reload " + net_->path, [&] { libsumo::Simulation::load(args); });
   traffic_rng_ = std::make_unique<Rng>(derive_seed(task.traffic_seed, 1));
   next_actor_id_ = 0;
+  sumo_->car_sizes.clear();  // ids start again with the episode
   scripted_ = 0;
   counters_ = {};
   outcome_ = Outcome::Running;
@@ -535,11 +540,11 @@ void World::insert_ego() {
         const double r = config_.world.view_radius;
         libsumo::Vehicle::subscribeContext(
             kEgo, libsumo::CMD_GET_VEHICLE_VARIABLE, r,
-            {libsumo::VAR_POSITION, libsumo::VAR_ANGLE, libsumo::VAR_SPEED, libsumo::VAR_LENGTH,
-             libsumo::VAR_WIDTH});
+            {libsumo::VAR_POSITION, libsumo::VAR_ANGLE, libsumo::VAR_SPEED});
         libsumo::Vehicle::subscribeContext(
             kEgo, libsumo::CMD_GET_PERSON_VARIABLE, r,
-            {libsumo::VAR_POSITION, libsumo::VAR_ANGLE, libsumo::VAR_SPEED});
+            {libsumo::VAR_POSITION, libsumo::VAR_ANGLE, libsumo::VAR_SPEED,
+             libsumo::VAR_WAITING_TIME});
         advance();  // subscription results exist after a step
         sumo_->nearby = libsumo::Vehicle::getContextSubscriptionResults(kEgo);
         ego_entry_time_ = libsumo::Simulation::getTime();
@@ -772,12 +777,20 @@ void World::refresh() {
     if (d.dot(d) > r2) continue;
     Actor a;
     a.id = id;
-    a.pedestrian = vars.find(libsumo::VAR_LENGTH) == vars.end();  // only cars report sizes
+    a.pedestrian = vars.count(libsumo::VAR_WAITING_TIME) > 0;  // only persons report it
     // A position is the front of a car or person; persons are squares of kPedSize.
-    a.box = a.pedestrian
-                ? box_from_front(p, number(libsumo::VAR_ANGLE), kPedSize, kPedSize)
-                : box_from_front(p, number(libsumo::VAR_ANGLE), number(libsumo::VAR_LENGTH),
-                                 number(libsumo::VAR_WIDTH));
+    if (a.pedestrian) {
+      a.box = box_from_front(p, number(libsumo::VAR_ANGLE), kPedSize, kPedSize);
+    } else {
+      auto size = sumo_->car_sizes.find(id);
+      if (size == sumo_->car_sizes.end())
+        size = sumo_->car_sizes
+                   .emplace(id, std::pair{libsumo::Vehicle::getLength(id),
+                                          libsumo::Vehicle::getWidth(id)})
+                   .first;
+      a.box = box_from_front(p, number(libsumo::VAR_ANGLE), size->second.first,
+                             size->second.second);
+    }
     a.speed = number(libsumo::VAR_SPEED);
     actors_.push_back(std::move(a));
   }
