@@ -213,6 +213,7 @@ void visit_settings(S& st, V&& v) {
   v.number("mujoco", "planner_temperature", st.mujoco.planner_temperature, 0, 1e6);
   v.number("mujoco", "planner_smoothing", st.mujoco.planner_smoothing, -1, 0.999);
   v.number("mujoco", "planner_terminal_steps", st.mujoco.planner_terminal_steps, -1, 1e6);
+  v.text("mujoco", "expert_policies", st.mujoco.expert_policies, {});
   v.integer("mujoco.episodes", "halfcheetah", st.mujoco.episodes.halfcheetah, 1, 1000000);
   v.integer("mujoco.episodes", "hopper", st.mujoco.episodes.hopper, 1, 1000000);
   v.integer("mujoco.episodes", "ant", st.mujoco.episodes.ant, 1, 1000000);

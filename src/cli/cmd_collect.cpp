@@ -45,6 +45,7 @@ void collect_mujoco(const CollectArgs& a) {
   o.noise = {a.noise || m.noise.enabled, m.noise.rate, m.noise.min_steps, m.noise.max_steps,
              m.noise.sigma};
   o.planner = mj::planner_options(m);  // the flags override the [mujoco] keys
+  o.expert_policies = m.expert_policies;
   if (a.planner_samples > 0) o.planner.samples = a.planner_samples;
   if (a.planner_horizon > 0) o.planner.horizon = a.planner_horizon;
   if (a.planner_iterations > 0) o.planner.iterations = a.planner_iterations;

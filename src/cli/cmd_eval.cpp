@@ -45,6 +45,7 @@ void eval_mujoco(const EvalArgs& a) {
   if (a.seed >= 0) o.seed = static_cast<uint64_t>(a.seed);
   o.max_steps = a.max_steps > 0 ? a.max_steps : s.mujoco.max_steps;
   o.planner = mj::planner_options(s.mujoco);
+  o.expert_policies = s.mujoco.expert_policies;
   o.quiet = a.quiet;
   const mj::EvalReport r = mj::evaluate(o);
   std::printf("%s", mj::eval_table(r.results).c_str());

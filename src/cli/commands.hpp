@@ -16,5 +16,6 @@ void add_report(CLI::App& app);
 void add_bench(CLI::App& app);
 void add_quickstart(CLI::App& app);
 void add_granger(CLI::App& app);
+void add_train_expert(CLI::App& app);
 
 }  // namespace cd::cli

@@ -38,6 +38,7 @@ int main(int argc, char** argv) {
   cd::cli::add_town(app);
   cd::cli::add_collect(app);
   cd::cli::add_train(app);
+  cd::cli::add_train_expert(app);
   cd::cli::add_eval(app);
   cd::cli::add_suite(app);
   cd::cli::add_probe(app);

@@ -191,6 +191,7 @@ Rollouts mujoco_rollouts(const Settings& settings, const std::string& data_dir, 
   o.height = first.height;
   o.max_steps = settings.mujoco.max_steps;
   o.planner = mj::planner_options(settings.mujoco);
+  o.expert_policies = settings.mujoco.expert_policies;
   o.quiet = quiet;
   const std::string env = first.env;
   o.driver = [policy, env, beta] { return std::make_unique<MujocoDaggerDriver>(policy, env, beta); };

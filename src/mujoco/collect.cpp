@@ -52,7 +52,8 @@ MujocoEpisode record_episode(const CollectOptions& o, int index) {
   Env env(o.env, env_options);
   PlannerOptions planner = o.planner;
   planner.seed = derive_seed(seed, 1);
-  PlannerExpert expert(o.env, planner);
+  const std::unique_ptr<Expert> expert_ptr = make_expert(o.env, planner, o.expert_policies);
+  Expert& expert = *expert_ptr;
   Rng noise_rng(derive_seed(seed, 2));
   const std::vector<double> low = env.action_low(), high = env.action_high();
   const int limit = o.max_steps > 0 ? std::min(o.max_steps, env.max_steps()) : env.max_steps();

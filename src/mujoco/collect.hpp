@@ -43,6 +43,7 @@ struct CollectOptions {
   int max_steps = 0;  // > 0: episodes end (truncated) after this many steps, below the env limit
   NoiseOptions noise;
   PlannerOptions planner;  // the expert; its seed is derived per episode
+  std::string expert_policies;  // non-empty: the expert is <env>.pt there (make_expert)
   // Made once per episode (in its worker) when set; noise injection must then be off.
   std::function<std::unique_ptr<Driver>()> driver;
   bool quiet = false;

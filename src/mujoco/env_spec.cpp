@@ -158,6 +158,7 @@ std::vector<EnvSpec> make_specs() {
   {
     EnvSpec s;
     s.name = "halfcheetah";
+    s.position_dims = 1;
     s.model_file = "halfcheetah.xml";
     s.frame_skip = 5;
     s.progress = root_x;
@@ -170,6 +171,7 @@ std::vector<EnvSpec> make_specs() {
   {
     EnvSpec s;
     s.name = "hopper";
+    s.position_dims = 1;
     s.model_file = "hopper.xml";
     s.frame_skip = 4;
     s.progress = root_x;
@@ -185,6 +187,7 @@ std::vector<EnvSpec> make_specs() {
   {
     EnvSpec s;
     s.name = "ant";
+    s.position_dims = 2;
     s.model_file = "ant.xml";
     s.frame_skip = 5;
     s.progress = torso_x;
@@ -216,6 +219,7 @@ std::vector<EnvSpec> make_specs() {
   {
     EnvSpec s;
     s.name = "humanoid";
+    s.position_dims = 2;
     s.model_file = "humanoid.xml";
     s.frame_skip = 5;
     s.progress = mass_center_x;

@@ -38,6 +38,9 @@ struct EnvSpec {
   // Gym's reset: perturbs qpos0/qvel = 0 (already in d) with draws from rng.
   void (*reset_noise)(const mjModel&, mjData&, Rng&) = nullptr;
   bool contact_forces = false;  // the reward reads cfrc_ext (computed after each step)
+  // Leading qpos entries a state policy does not see (Gym's exclude_current_positions_from_
+  // observation: the root's x, or x and y): where the body is must not decide how it moves.
+  int position_dims = 0;
   CameraSpec camera;
 };
 

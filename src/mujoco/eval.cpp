@@ -101,11 +101,11 @@ json run_episode(const EvalOptions& o, int index) {
   const int A = env.action_dim();
   const std::vector<double> low = env.action_low(), high = env.action_high();
   const int limit = o.max_steps > 0 ? std::min(o.max_steps, env.max_steps()) : env.max_steps();
-  std::unique_ptr<PlannerExpert> expert;
+  std::unique_ptr<Expert> expert;
   if (o.agent == "expert") {
     PlannerOptions planner = o.planner;
     planner.seed = derive_seed(seed, 1);
-    expert = std::make_unique<PlannerExpert>(o.env, planner);
+    expert = make_expert(o.env, planner, o.expert_policies);
   }
   Rng rng(derive_seed(seed, 3));
 

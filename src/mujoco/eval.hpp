@@ -48,6 +48,7 @@ struct EvalOptions {
   int max_steps = 0;       // > 0: episodes end (truncated) after this many steps
   int max_attempts = 2;    // a crashed worker's episode is run this often
   PlannerOptions planner;  // --agent expert
+  std::string expert_policies;  // non-empty: --agent expert is <env>.pt there (make_expert)
   bool quiet = false;
 };
 

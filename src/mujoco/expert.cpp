@@ -5,8 +5,15 @@
 #include <cstdio>
 
 #include "core/error.hpp"
+#include "mujoco/sac.hpp"
 
 namespace cd::mj {
+
+std::unique_ptr<Expert> make_expert(const std::string& env, const PlannerOptions& planner,
+                                    const std::string& policies) {
+  if (policies.empty()) return std::make_unique<PlannerExpert>(env, planner);
+  return std::make_unique<PolicyExpert>(policies + "/" + env + ".pt", env);
+}
 
 PlannerOptions planner_options(const MujocoSettings& m) {
   PlannerOptions o;

@@ -29,6 +29,7 @@ class Expert {
   virtual std::string describe() const = 0;  // one line: kind and settings (recorded in data)
 };
 
+
 struct PlannerOptions {
   int samples = 0;           // rollouts per iteration; 0: the env's default
   int horizon = 0;           // env steps per rollout; 0: the env's default
@@ -47,6 +48,11 @@ struct PlannerOptions {
 PlannerOptions planner_defaults(const std::string& env, PlannerOptions options = {});
 // The options the [mujoco] planner_* settings give (0 / < 0: the env's default).
 PlannerOptions planner_options(const MujocoSettings& m);
+
+// The expert of `env`: the trained policy `policies`/<env>.pt (mj::PolicyExpert,
+// mujoco/sac.hpp) when `policies` is not empty, else the planner with `planner`'s settings.
+std::unique_ptr<Expert> make_expert(const std::string& env, const PlannerOptions& planner,
+                                    const std::string& policies);
 
 class PlannerExpert : public Expert {
  public:

@@ -40,6 +40,9 @@ struct MujocoSettings {
   double planner_temperature = 0;  // weight temperature
   double planner_smoothing = -1;   // time correlation of the noise (0 white, < 1)
   double planner_terminal_steps = -1;  // extra weight of a rollout's last reward
+  // A folder of trained state policies (`causaldrive train-expert`, one <env>.pt each): when
+  // set, the expert of collect, eval and dagger is the env's policy there, not the planner.
+  std::string expert_policies;
 };
 
 }  // namespace cd
