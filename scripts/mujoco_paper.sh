@@ -3,11 +3,12 @@
 # MuJoCo comparison) with configs/mujoco_paper.toml: expert data per env, the seven methods x
 # env x seed, closed-loop returns, and one table with the expert and a random policy for scale.
 #
-#   scripts/mujoco_paper.sh data     # expert episodes per env (the planner; [mujoco.episodes])
+#   scripts/mujoco_paper.sh experts  # a SAC state expert per env (experts/ENV.pt, train-expert)
+#   scripts/mujoco_paper.sh data     # expert episodes per env (the SAC experts; [mujoco.episodes])
 #   scripts/mujoco_paper.sh train    # bc-so bc-oh residual fca keyframe hd dagger, every env x seed
 #   scripts/mujoco_paper.sh eval     # every trained run, the expert and a random policy
 #   scripts/mujoco_paper.sh table    # return and copycat R2, mean +- sd over seeds -> table.md/.csv
-#   scripts/mujoco_paper.sh all      # the four in order
+#   scripts/mujoco_paper.sh all      # the five in order
 #   scripts/mujoco_paper.sh lr-sweep # table 12's learning rate: bc-oh at 0.1 ... 1e-4 on the first
 #                                    # env's data, validation loss on its held-out episodes
 #
@@ -22,8 +23,10 @@
 #   METHODS  methods                    (default: "bc-so bc-oh residual fca keyframe hd dagger")
 #   CONFIG   the experiment config      (default: configs/mujoco_paper.toml)
 #   SWEEP_EPOCHS  epochs per rate in lr-sweep (default: 5)
-# The expert is the costly part: ~0.04 s per step (halfcheetah) to ~0.6 s (humanoid) per core,
-# for data, dagger's rounds and the expert row alike.
+#   EXPERTS  the folder of SAC experts  (default: experts; kept when the file exists)
+# With the SAC experts, training them is the costly part (about 40 min per 200k steps on 2
+# cores); the planner (the config without expert_policies) costs ~0.04 s (halfcheetah) to ~0.6 s
+# (humanoid) per step for data, dagger's rounds and the expert row alike.
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
@@ -34,6 +37,24 @@ SEEDS=${SEEDS:-"0 1 2"}
 METHODS=${METHODS:-"bc-so bc-oh residual fca keyframe hd dagger"}
 CONFIG=${CONFIG:-configs/mujoco_paper.toml}
 source scripts/paper_lib.sh
+
+# SAC env steps per env: ~12 ms each on 2 cores (one update per step), so ~40 min per 200k.
+expert_steps() {
+  case $1 in
+    reacher) echo 50000 ;;
+    halfcheetah) echo 200000 ;;
+    *) echo 300000 ;;
+  esac
+}
+
+experts() {
+  local dir=${EXPERTS:-experts}
+  for env in $ENVS; do
+    [[ -f $dir/$env.pt ]] && { echo "$dir/$env.pt: kept" >&2; continue; }
+    "$CD" train-expert --env "$env" --out "$dir/$env.pt" --steps "$(expert_steps "$env")" \
+      --eval-episodes 3 --threads 2 --seed 0
+  done
+}
 
 data() {
   for env in $ENVS; do
@@ -95,14 +116,15 @@ table() {
 }
 
 case ${1:-} in
+  experts) experts ;;
   data) data ;;
   train) train ;;
   eval) evaluate ;;
   table) table ;;
-  all) data; train; evaluate; table ;;
+  all) experts; data; train; evaluate; table ;;
   lr-sweep) lr_sweep ;;
   *)
-    sed -n '2,26p' "$0" | sed 's/^# \{0,1\}//'
+    sed -n '2,28p' "$0" | sed 's/^# \{0,1\}//'
     exit 2
     ;;
 esac
