@@ -485,15 +485,14 @@ class PyMujocoEnv {
     return py::make_tuple(frame, r.reward, r.terminated, truncated, i);
   }
 
-  // The planner expert's action at the current state (it costs samples x horizon env steps).
+  // The expert's action at the current state: collect's expert (the planner, whose query costs
+  // samples x horizon env steps, or the trained policy [mujoco] expert_policies names).
   py::array_t<float> expert_action() {
     if (!started_) throw Error("expert_action() before reset()");
     if (!expert_) {
-      mj::PlannerOptions p;
-      p.samples = settings_.mujoco.planner_samples;
-      p.horizon = settings_.mujoco.planner_horizon;
+      mj::PlannerOptions p = mj::planner_options(settings_.mujoco);
       p.seed = derive_seed(seed_, 1);  // as collect's expert for an episode of this seed
-      expert_ = std::make_unique<mj::PlannerExpert>(env().name(), p);
+      expert_ = mj::make_expert(env().name(), p, settings_.mujoco.expert_policies);
     }
     const std::vector<double> a = expert_->act(env().state());
     py::array_t<float> out(static_cast<py::ssize_t>(a.size()));
@@ -525,7 +524,7 @@ class PyMujocoEnv {
  private:
   Settings settings_;
   std::unique_ptr<mj::Env> env_;
-  std::unique_ptr<mj::PlannerExpert> expert_;
+  std::unique_ptr<mj::Expert> expert_;
   int limit_ = 0, resets_ = 0;
   uint64_t seed_ = 0;
   double ret_ = 0;

@@ -40,6 +40,9 @@ void validate(const CollectOptions& o) {
     throw ConfigError("collect: noise settings out of range");
   if (o.driver && n.enabled)
     throw ConfigError("collect: noise injection and a driver exclude each other");
+  // A trained expert is loaded here once, so that a missing or wrong file is one line before
+  // any worker starts.
+  if (!o.expert_policies.empty()) make_expert(o.env, o.planner, o.expert_policies);
 }
 
 }  // namespace

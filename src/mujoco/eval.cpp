@@ -65,6 +65,9 @@ void validate(const EvalOptions& o, Checkpoint* ck) {
   if (o.agent == "expert" || o.agent == "random") {
     if (!o.checkpoint.empty())
       throw ConfigError("agent '" + o.agent + "' takes no --checkpoint");
+    // A trained expert's file is checked before any worker starts.
+    if (o.agent == "expert" && !o.expert_policies.empty())
+      make_expert(o.env, o.planner, o.expert_policies);
     return;
   }
   if (!is_policy(o.agent))

@@ -132,5 +132,43 @@ TEST(CliMujoco, BenchExpertReportsReturnAndCostAndIsSeeded) {
   EXPECT_EQ(nlohmann::json::parse(test::split_lines(again.out).at(0))["return"], j["return"]);
 }
 
+// train-expert writes a policy and its record; a config naming the folder makes it collect's
+// expert (the file says so, and the labels are its deterministic actions: the same on a rerun
+// into another folder); a folder without the env's policy is one line naming the file.
+TEST(CliMujoco, TrainExpertThenCollectWithIt) {
+  TempDir dir("cdtest-mjcli");
+  CommandResult r = test::run_cli({"train-expert", "--env", "reacher", "--out",
+                                   dir / "experts/reacher.pt", "--steps", "300", "--start-steps",
+                                   "150", "--batch", "16", "--hidden", "8", "--eval-every", "150",
+                                   "--eval-episodes", "1"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_TRUE(has(r.out, "best return")) << r.out;
+  const auto record = nlohmann::json::parse(test::read_text(dir / "experts/reacher.json"));
+  EXPECT_EQ(record["env"], "reacher");
+  EXPECT_EQ(record["evaluations"].size(), 2u);
+
+  const std::string cfg = dir / "mj.toml";
+  test::write_text(cfg, "[mujoco]\nexpert_policies = \"" + dir / "experts" + "\"\n");
+  std::vector<std::string> args = {"collect", "--env", "reacher", "--config", cfg, "--episodes",
+                                   "1", "--max-steps", "5", "--workers", "1", "--out",
+                                   dir / "a"};
+  r = test::run_cli(args);
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  args.back() = dir / "b";
+  ASSERT_EQ(test::run_cli(args).exit_code, 0);
+  const MujocoEpisode a = read_mujoco_episode(dir / "a/episode_000000.h5");
+  const MujocoEpisode b = read_mujoco_episode(dir / "b/episode_000000.h5");
+  EXPECT_TRUE(has(a.extra.at("expert"), "sac policy reacher.pt")) << a.extra.at("expert");
+  EXPECT_EQ(a.action, b.action);
+
+  const std::string line = one_line_error(
+      test::run_cli({"collect", "--env", "hopper", "--config", cfg, "--episodes", "1",
+                     "--max-steps", "2", "--workers", "1", "--out", dir / "h"}),
+      "no hopper expert");
+  EXPECT_TRUE(has(line, dir / "experts/hopper.pt")) << line;
+  EXPECT_TRUE(one_line_error(test::run_cli({"train-expert", "--env", "walker"}), "bad env")
+                  .find("unknown MuJoCo environment 'walker'") != std::string::npos);
+}
+
 }  // namespace
 }  // namespace cd
