@@ -42,7 +42,7 @@ source scripts/paper_lib.sh
 expert_steps() {
   case $1 in
     reacher) echo 50000 ;;
-    halfcheetah) echo 200000 ;;
+    halfcheetah | hopper) echo 200000 ;;
     *) echo 300000 ;;
   esac
 }
