@@ -67,6 +67,35 @@ class MujocoEnvTest(TempDirCase):
                 obs, reward, terminated, truncated, info = env.step(actions[t])
                 self.assertAlmostEqual(reward, float(rewards[t]), places=3)
 
+    def test_trained_expert_matches_collect(self):
+        """With mujoco.expert_policies, expert_action() is the trained policy collect labels
+        with: the labels of a collected episode, step by step along its states."""
+        experts = os.path.join(self.dir, "experts")
+        cli("train-expert", "--env", "reacher", "--out", os.path.join(experts, "reacher.pt"),
+            "--steps", 200, "--start-steps", 100, "--batch", 16, "--hidden", 8, "--eval-every",
+            100, "--eval-episodes", 1)
+        config = os.path.join(self.dir, "mj.toml")
+        with open(config, "w") as f:
+            f.write('[mujoco]\nexpert_policies = "%s"\n' % experts)
+        out = os.path.join(self.dir, "data")
+        cli("collect", "--env", "reacher", "--config", config, "--episodes", 1, "--max-steps", 6,
+            "--size", 32, "--workers", 1, "--out", out)
+        path = glob.glob(os.path.join(out, "*.h5"))[0]
+        with h5py.File(path, "r") as f:
+            actions, seed = f["action"][()], int(f.attrs["seed"])
+            self.assertIn("sac policy", f.attrs["expert"].decode() if isinstance(
+                f.attrs["expert"], bytes) else f.attrs["expert"])
+        with causaldrive.make("reacher", config=config, settings={"mujoco.size": 32}) as env:
+            env.reset(seed=seed)
+            for t in range(len(actions)):
+                label = env.expert_action()
+                np.testing.assert_allclose(label, actions[t], atol=1e-5)
+                env.step(actions[t])
+        with causaldrive.make("hopper", config=config) as env:
+            env.reset(seed=1)
+            with self.assertRaises(causaldrive.DataError):
+                env.expert_action()
+
 
 if __name__ == "__main__":
     unittest.main()
