@@ -12,8 +12,9 @@
 #   scripts/mujoco_paper.sh lr-sweep # table 12's learning rate: bc-oh at 0.1 ... 1e-4 on the first
 #                                    # env's data, validation loss on its held-out episodes
 #
-# Every step resumes: collect, train and eval keep what their output folders already hold, so
-# an interrupted run is continued by running the same command again; finished evaluations and
+# Every step resumes: train-expert continues from its .resume file; collect, train and eval
+# keep what their output folders already hold, so an interrupted run is continued by running
+# the same command again; finished evaluations and
 # the table are also kept in results/mujoco_paper (committed, scripts/paper_lib.sh). Knobs:
 #   CD       the causaldrive binary    (default: build/causaldrive)
 #   OUT      the experiment folder      (default: runs/mujoco_paper)
@@ -50,7 +51,7 @@ expert_steps() {
 experts() {
   local dir=${EXPERTS:-experts}
   for env in $ENVS; do
-    [[ -f $dir/$env.pt ]] && { echo "$dir/$env.pt: kept" >&2; continue; }
+    [[ -f $dir/$env.pt && ! -f $dir/$env.pt.resume ]] && { echo "$dir/$env.pt: kept" >&2; continue; }
     "$CD" train-expert --env "$env" --out "$dir/$env.pt" --steps "$(expert_steps "$env")" \
       --eval-episodes 3 --threads 2 --seed 0
   done

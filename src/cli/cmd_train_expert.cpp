@@ -15,7 +15,8 @@ void add_train_expert(CLI::App& app) {
   auto out = std::make_shared<std::string>();
   CLI::App* sub = app.add_subcommand(
       "train-expert", "train a MuJoCo-Image state expert with soft actor-critic (the expert "
-                      "[mujoco] expert_policies selects)");
+                      "[mujoco] expert_policies selects); resumes from FILE.resume when "
+                      "rerun");
   sub->add_option("--env", *env, "halfcheetah, hopper, ant, reacher or humanoid")->required();
   sub->add_option("--out,-o", *out, "policy file (default: experts/ENV.pt; ENV.json beside it)");
   sub->add_option("--steps", o->steps, "env steps, one update each (default 300000)")

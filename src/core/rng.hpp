@@ -1,6 +1,7 @@
 #pragma once
 // Seeded randomness with results fixed by this code alone (std:: distributions differ between
 // library versions, which would break "same seed, same bytes").
+#include <array>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -40,6 +41,12 @@ class Rng {
   double uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }  // [0,1)
   double uniform(double lo, double hi) { return lo + (hi - lo) * uniform(); }
   uint64_t below(uint64_t n) { return n ? next() % n : 0; }  // bias negligible for small n
+
+  // The generator's whole state, to continue a stream after a restart.
+  std::array<uint64_t, 4> state() const { return {s_[0], s_[1], s_[2], s_[3]}; }
+  void set_state(const std::array<uint64_t, 4>& s) {
+    for (int i = 0; i < 4; ++i) s_[i] = s[i];
+  }
 
  private:
   static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }

@@ -1,6 +1,8 @@
 #include "mujoco/env.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "core/error.hpp"
 #include "mujoco/renderer.hpp"
@@ -92,6 +94,35 @@ void Env::set_state(std::span<const double> state) {
   // The solver's warm start would carry the previous trajectory into the next step: clear it,
   // so that what follows a set_state depends on the state alone.
   for (int i = 0; i < model_->nv; ++i) data_->qacc_warmstart[i] = 0;
+  recompute();
+}
+
+namespace {
+// The mjData arrays a snapshot holds after time and the step counter, with their lengths.
+std::vector<std::pair<double*, int>> integration_arrays(const mjModel& m, mjData& d) {
+  return {{d.qpos, m.nq}, {d.qvel, m.nv}, {d.act, m.na}, {d.ctrl, m.nu}, {d.qacc_warmstart, m.nv}};
+}
+}  // namespace
+
+std::vector<double> Env::snapshot() const {
+  std::vector<double> s = {data_->time, static_cast<double>(steps_)};
+  for (auto [p, n] : integration_arrays(*model_, *data_)) s.insert(s.end(), p, p + n);
+  return s;
+}
+
+void Env::restore(std::span<const double> s) {
+  size_t want = 2;
+  for (auto [p, n] : integration_arrays(*model_, *data_)) want += static_cast<size_t>(n);
+  if (s.size() != want)
+    throw SimError("env '" + spec_.name + "' has snapshots of " + std::to_string(want) +
+                   " values, got " + std::to_string(s.size()));
+  data_->time = s[0];
+  steps_ = static_cast<int>(s[1]);
+  size_t k = 2;
+  for (auto [p, n] : integration_arrays(*model_, *data_)) {
+    std::copy_n(s.begin() + static_cast<std::ptrdiff_t>(k), n, p);
+    k += static_cast<size_t>(n);
+  }
   recompute();
 }
 

@@ -67,6 +67,11 @@ class Env {
   std::vector<double> state() const;  // qpos then qvel
   // Sets qpos, qvel (and recomputes positions); the step counter is kept.
   void set_state(std::span<const double> state);
+  // The exact integration state (time, step counter, qpos, qvel, activations, controls and the
+  // solver's warm start): restore() continues bit for bit as the env would have, which
+  // set_state (a state alone, warm start cleared) does not. For resuming a training run.
+  std::vector<double> snapshot() const;
+  void restore(std::span<const double> snapshot);  // a snapshot of this env; else SimError
 
   int channels() const { return 3; }
   int width() const { return options_.width; }

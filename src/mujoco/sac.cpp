@@ -1,12 +1,15 @@
 #include "mujoco/sac.hpp"
 
 #include <torch/torch.h>
+#include <ATen/CPUGeneratorImpl.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <mutex>
+#include <optional>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -16,6 +19,7 @@
 #include "core/progress.hpp"
 #include "core/rng.hpp"
 #include "mujoco/env.hpp"
+#include "nn/policy_net.hpp"
 
 namespace cd::mj {
 
@@ -123,6 +127,64 @@ std::vector<float> policy_input(const EnvSpec& spec, int nq, std::span<const dou
   return x;
 }
 
+namespace {
+
+// The run's options as recorded; `with_steps` false leaves out what may grow on a resume.
+nlohmann::json options_json(const SacOptions& o, bool with_steps = true) {
+  nlohmann::json j = {{"start_steps", o.start_steps}, {"batch", o.batch}, {"hidden", o.hidden},
+                      {"lr", o.lr}, {"gamma", o.gamma}, {"tau", o.tau},
+                      {"eval_every", o.eval_every}, {"eval_episodes", o.eval_episodes},
+                      {"seed", o.seed}, {"threads", o.threads}};
+  if (with_steps) j["steps"] = o.steps;
+  return j;
+}
+
+nlohmann::json evaluation_json(const SacEvaluation& e) {
+  return {{"steps", e.steps}, {"mean_return", e.mean_return}, {"sd_return", e.sd_return},
+          {"seconds", e.seconds}};
+}
+
+SacEvaluation evaluation_from(const nlohmann::json& j) {
+  SacEvaluation e;
+  e.steps = j.at("steps").get<long>();
+  e.mean_return = j.at("mean_return").get<double>();
+  e.sd_return = j.at("sd_return").get<double>();
+  e.seconds = j.value("seconds", 0.0);
+  return e;
+}
+
+torch::Tensor bytes_tensor(const std::string& s) {
+  return torch::from_blob(const_cast<char*>(s.data()), {static_cast<int64_t>(s.size())}, torch::kUInt8)
+      .clone();
+}
+
+std::string tensor_bytes(const torch::Tensor& t) {
+  const torch::Tensor c = t.to(torch::kUInt8).contiguous();
+  return {reinterpret_cast<const char*>(c.data_ptr<uint8_t>()), static_cast<size_t>(c.numel())};
+}
+
+// A finished run's record at `out`'s JSON with these options: its report; nullopt otherwise.
+std::optional<SacReport> finished_run(const std::string& json_path, const std::string& env,
+                                      const SacOptions& o) {
+  try {
+    const nlohmann::json j = nlohmann::json::parse(read_file_bytes(json_path));
+    if (j.at("env") != env || j.at("options") != options_json(o)) return std::nullopt;
+    SacReport r;
+    for (const auto& e : j.at("evaluations")) r.evaluations.push_back(evaluation_from(e));
+    if (r.evaluations.empty() || r.evaluations.back().steps != o.steps) return std::nullopt;
+    r.best = evaluation_from(j.at("best"));
+    r.seconds = j.at("seconds").get<double>();
+    r.episodes = j.at("episodes").get<long>();
+    return r;
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+}
+
+}  // namespace
+
+std::string sac_resume_path(const std::string& out) { return out + ".resume"; }
+
 SacReport train_sac(const std::string& env_name, const SacOptions& o, const std::string& out,
                     const std::function<void(const std::string&)>& log) {
   validate(o);
@@ -132,6 +194,19 @@ SacReport train_sac(const std::string& env_name, const SacOptions& o, const std:
   const int nq = env.qpos_dim(), A = env.action_dim();
   const int O = static_cast<int>(policy_input(spec, nq, env.state()).size());
   const std::vector<double> low = env.action_low(), high = env.action_high();
+  const std::string record_path = std::filesystem::path(out).replace_extension(".json").string();
+  const std::string resume_path = sac_resume_path(out);
+  const bool resuming = std::filesystem::exists(resume_path);
+  if (!resuming && std::filesystem::exists(out)) {
+    // Rerunning a finished run is a no-op; anything else would overwrite a policy.
+    if (std::optional<SacReport> done = finished_run(record_path, env_name, o)) {
+      if (log) log("[sac " + env_name + "] " + out + " is finished with these options: kept");
+      return *done;
+    }
+    throw ConfigError(out + " already exists and its record " + record_path +
+                      " is not a finished run with these options (nor is there a resume file " +
+                      resume_path + "); delete it or choose another --out");
+  }
   if (!std::filesystem::path(out).parent_path().empty())
     std::filesystem::create_directories(std::filesystem::path(out).parent_path());
 
@@ -150,6 +225,12 @@ SacReport train_sac(const std::string& env_name, const SacOptions& o, const std:
   const int64_t N = o.steps;
   torch::Tensor b_obs = torch::zeros({N, O}), b_next = torch::zeros({N, O}),
                 b_act = torch::zeros({N, A}), b_rew = torch::zeros({N}), b_done = torch::zeros({N});
+  std::vector<std::pair<std::string, torch::Tensor*>> buffers = {
+      {"b_obs", &b_obs}, {"b_next", &b_next}, {"b_act", &b_act}, {"b_rew", &b_rew}, {"b_done", &b_done}};
+  std::vector<std::pair<std::string, torch::nn::Module*>> modules = {
+      {"actor", actor.get()}, {"critic", critic.get()}, {"target", target.get()}};
+  std::vector<std::pair<std::string, torch::optim::Optimizer*>> optimizers = {
+      {"actor_opt", &actor_opt}, {"critic_opt", &critic_opt}, {"alpha_opt", &alpha_opt}};
 
   Rng rng(derive_seed(o.seed, 1));
   long episodes = 0;
@@ -182,27 +263,142 @@ SacReport train_sac(const std::string& env_name, const SacOptions& o, const std:
 
   SacReport report;
   report.best.mean_return = -1e300;
+  double seconds_before = 0;  // training time of earlier sessions of a resumed run
   const auto t0 = std::chrono::steady_clock::now();
-  auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
+  auto elapsed = [&] {
+    return seconds_before + std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  };
   auto write_record = [&] {
     nlohmann::json evals = nlohmann::json::array();
-    for (const SacEvaluation& e : report.evaluations)
-      evals.push_back({{"steps", e.steps}, {"mean_return", e.mean_return},
-                       {"sd_return", e.sd_return}, {"seconds", e.seconds}});
+    for (const SacEvaluation& e : report.evaluations) evals.push_back(evaluation_json(e));
     nlohmann::json j = {
-        {"env", env_name}, {"algorithm", "sac"},
-        {"options", {{"steps", o.steps}, {"start_steps", o.start_steps}, {"batch", o.batch},
-                     {"hidden", o.hidden}, {"lr", o.lr}, {"gamma", o.gamma}, {"tau", o.tau},
-                     {"eval_every", o.eval_every}, {"eval_episodes", o.eval_episodes},
-                     {"seed", o.seed}, {"threads", o.threads}}},
+        {"env", env_name}, {"algorithm", "sac"}, {"options", options_json(o)},
         {"best", {{"steps", report.best.steps}, {"mean_return", report.best.mean_return},
                   {"sd_return", report.best.sd_return}}},
         {"episodes", episodes}, {"seconds", elapsed()}, {"evaluations", evals}};
-    write_file_atomic(std::filesystem::path(out).replace_extension(".json").string(), j.dump(2) + "\n");
+    write_file_atomic(record_path, j.dump(2) + "\n");
   };
 
+  // The resume file, written at every evaluation: networks, optimisers, temperature, the
+  // buffer so far, both random streams and the training env's exact state, so that a resumed
+  // run continues bit for bit (same bytes as a run never stopped).
+  auto save_resume = [&](long steps_done) {
+    torch::serialize::OutputArchive archive;
+    nlohmann::json evals = nlohmann::json::array();
+    for (const SacEvaluation& e : report.evaluations) evals.push_back(evaluation_json(e));
+    const nlohmann::json meta = {{"env", env_name},        {"options", options_json(o, false)},
+                                 {"steps_done", steps_done}, {"episodes", episodes},
+                                 {"seconds", elapsed()},     {"best", evaluation_json(report.best)},
+                                 {"evaluations", evals},     {"rng", rng.state()}};
+    archive.write("meta", bytes_tensor(meta.dump()));
+    for (auto& [name, m] : modules) archive.write(name, bytes_tensor(save_module_bytes(*m)));
+    for (auto& [name, opt] : optimizers) archive.write(name, bytes_tensor(save_optimizer_bytes(*opt)));
+    archive.write("log_alpha", log_alpha.detach().clone());
+    for (auto& [name, b] : buffers) archive.write(name, b->narrow(0, 0, steps_done).clone());
+    {
+      // The engine's state, and both cached normal draws set explicitly on loading, so that
+      // restoring does not depend on how get_state's legacy layout carries them.
+      auto gen = at::detail::getDefaultCPUGenerator();
+      std::lock_guard<std::mutex> lock(gen.mutex());
+      archive.write("torch_rng", gen.get_state());
+      auto* impl = gen.get<at::CPUGeneratorImpl>();
+      nlohmann::json cached = {{"double", nullptr}, {"float", nullptr}};
+      if (auto d = impl->next_double_normal_sample()) cached["double"] = *d;
+      if (auto f = impl->next_float_normal_sample()) cached["float"] = static_cast<double>(*f);
+      archive.write("torch_rng_cached", bytes_tensor(cached.dump()));
+    }
+    const std::vector<double> snap = env.snapshot();
+    archive.write("env_state", torch::tensor(snap, torch::kFloat64));
+    std::ostringstream bytes;
+    archive.save_to(bytes);
+    write_file_atomic(resume_path, bytes.str());
+  };
+  // Returns the env steps the resume file had done.
+  auto load_resume = [&]() -> long {
+    const std::string hint = "; delete " + resume_path + " to start over";
+    try {
+      torch::serialize::InputArchive archive;
+      archive.load_from(resume_path);
+      // A fresh tensor per key: reading into a defined tensor would keep its dtype.
+      auto read = [&](const std::string& key) {
+        torch::Tensor x;
+        archive.read(key, x);
+        return x;
+      };
+      torch::Tensor t = read("meta");
+      const nlohmann::json meta = nlohmann::json::parse(tensor_bytes(t));
+      if (meta.at("env") != env_name || meta.at("options") != options_json(o, false))
+        throw ConfigError(resume_path + " belongs to a run with other settings (" +
+                          meta.at("env").get<std::string>() + ", " + meta.at("options").dump() +
+                          "); rerun with those" + hint);
+      const long done = meta.at("steps_done").get<long>();
+      if (done > o.steps)
+        throw ConfigError(resume_path + " is at step " + std::to_string(done) + ", past --steps " +
+                          std::to_string(o.steps));
+      for (auto& [name, m] : modules) {
+        t = read(name);
+        load_module_bytes(*m, tensor_bytes(t), torch::kCPU, resume_path + " (" + name + ")");
+      }
+      for (auto& [name, opt] : optimizers) {
+        t = read(name);
+        load_optimizer_bytes(*opt, tensor_bytes(t), torch::kCPU, resume_path + " (" + name + ")", hint);
+      }
+      t = read("log_alpha");
+      {
+        torch::NoGradGuard no_grad;
+        log_alpha.copy_(t);
+      }
+      for (auto& [name, b] : buffers) {
+        t = read(name);
+        if (t.size(0) != done || t.sizes().slice(1).vec() != b->sizes().slice(1).vec())
+          throw DataError(resume_path + ": buffer '" + name + "' has the wrong shape" + hint);
+        b->narrow(0, 0, done).copy_(t);
+      }
+      t = read("torch_rng");
+      {
+        auto gen = at::detail::getDefaultCPUGenerator();
+        std::lock_guard<std::mutex> lock(gen.mutex());
+        gen.set_state(t);
+        t = read("torch_rng_cached");
+        const nlohmann::json cached = nlohmann::json::parse(tensor_bytes(t));
+        auto* impl = gen.get<at::CPUGeneratorImpl>();
+        impl->set_next_double_normal_sample(
+            cached.at("double").is_null() ? c10::optional<double>() : cached["double"].get<double>());
+        impl->set_next_float_normal_sample(
+            cached.at("float").is_null() ? c10::optional<float>()
+                                         : static_cast<float>(cached["float"].get<double>()));
+      }
+      t = read("env_state");
+      const torch::Tensor snap = t.to(torch::kFloat64).contiguous();
+      env.restore({snap.data_ptr<double>(), static_cast<size_t>(snap.numel())});
+      obs = policy_input(spec, nq, env.state());
+      episodes = meta.at("episodes").get<long>();
+      seconds_before = meta.at("seconds").get<double>();
+      for (const auto& e : meta.at("evaluations")) report.evaluations.push_back(evaluation_from(e));
+      report.best = evaluation_from(meta.at("best"));
+      rng.set_state(meta.at("rng").get<std::array<uint64_t, 4>>());
+      return done;
+    } catch (const c10::Error& e) {
+      std::string msg = e.what_without_backtrace();
+      throw DataError("cannot read the resume file " + resume_path + " (" +
+                      msg.substr(0, msg.find('\n')) + ")" + hint);
+    } catch (const nlohmann::json::exception& e) {
+      throw DataError("cannot read the resume file " + resume_path + " (" + e.what() + ")" + hint);
+    } catch (const SimError& e) {
+      throw DataError("cannot read the resume file " + resume_path + " (" + e.what() + ")" + hint);
+    }
+  };
+
+  long first = 0;
+  if (resuming) {
+    first = load_resume();
+    if (log)
+      log("[sac " + env_name + "] resuming " + resume_path + " at step " + std::to_string(first) +
+          "/" + std::to_string(o.steps));
+  }
+
   std::vector<float> act(static_cast<size_t>(A));
-  for (long t = 0; t < o.steps; ++t) {
+  for (long t = first; t < o.steps; ++t) {
     if (t < o.start_steps) {
       for (float& a : act) a = static_cast<float>(rng.uniform(-1.0, 1.0));
     } else {
@@ -268,6 +464,9 @@ SacReport train_sac(const std::string& env_name, const SacOptions& o, const std:
       }
       report.episodes = episodes;
       write_record();
+      // Policy and record first: a run killed before the resume file is rewritten redoes the
+      // last stretch from the previous one and writes the same bytes again.
+      if (t + 1 < o.steps) save_resume(t + 1);
       if (log) {
         char line[200];
         std::snprintf(line, sizeof line, "[sac %s] %ld/%ld steps  return %.1f +- %.1f%s  alpha %.3f  %s",
@@ -281,6 +480,7 @@ SacReport train_sac(const std::string& env_name, const SacOptions& o, const std:
   report.seconds = elapsed();
   report.episodes = episodes;
   write_record();
+  std::filesystem::remove(resume_path);  // finished: the record says so from now on
   return report;
 }
 

@@ -55,6 +55,14 @@ struct SacReport {
 // Trains on `env` and writes the best evaluated policy to `out` (atomically, when an evaluation
 // improves on the best so far) and a JSON record beside it (`out` with .json). `log` gets one
 // line per evaluation (nullptr: silent). Throws ConfigError for an unknown env or bad options.
+//
+// Resumable: every evaluation also writes sac_resume_path(out) (networks, optimisers, the
+// replay buffer, the random streams, the env's exact state); a call that finds it continues
+// from there with the same bytes as a run never stopped (the options must be the same; steps
+// may grow), and the file is removed when the run finishes. A call whose `out` holds a finished
+// run with the same options returns its record and trains nothing; an `out` that exists
+// otherwise is a ConfigError (never overwritten). A corrupt resume file is a DataError.
+std::string sac_resume_path(const std::string& out);
 SacReport train_sac(const std::string& env, const SacOptions& options, const std::string& out,
                     const std::function<void(const std::string&)>& log = nullptr);
 

@@ -231,6 +231,27 @@ std::string save_module_bytes(nn::Module& module) {
   return os.str();
 }
 
+std::string save_optimizer_bytes(const torch::optim::Optimizer& opt) {
+  torch::serialize::OutputArchive archive;
+  opt.save(archive);
+  std::ostringstream os;
+  archive.save_to(os);
+  return os.str();
+}
+
+void load_optimizer_bytes(torch::optim::Optimizer& opt, const std::string& bytes,
+                          const torch::Device& device, const std::string& what,
+                          const std::string& hint) {
+  try {
+    std::istringstream is(bytes);
+    torch::serialize::InputArchive archive;
+    archive.load_from(is, device);
+    opt.load(archive);
+  } catch (const c10::Error&) {
+    throw DataError(what + " does not fit the network" + hint);
+  }
+}
+
 void load_module_bytes(nn::Module& module, const std::string& bytes, const torch::Device& device,
                        const std::string& what) {
   // torch's Module::load replaces each tensor whatever its shape: the shapes are checked here.

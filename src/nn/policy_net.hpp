@@ -137,5 +137,10 @@ TORCH_MODULE(PolicyNet);
 std::string save_module_bytes(torch::nn::Module& module);
 void load_module_bytes(torch::nn::Module& module, const std::string& bytes,
                        const torch::Device& device, const std::string& what);
+// The same for an optimiser's state (Adam's moments and step counts).
+std::string save_optimizer_bytes(const torch::optim::Optimizer& opt);
+void load_optimizer_bytes(torch::optim::Optimizer& opt, const std::string& bytes,
+                          const torch::Device& device, const std::string& what,
+                          const std::string& hint = "");
 
 }  // namespace cd

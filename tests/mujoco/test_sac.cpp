@@ -5,8 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -120,6 +122,95 @@ TEST(Sac, AMismatchedOrCorruptPolicyFileIsADataError) {
   bad.start_steps = bad.steps + 1;
   EXPECT_THROW(train_sac("reacher", bad, dir / "x.pt"), ConfigError);
   EXPECT_THROW(train_sac("walker", tiny(1), dir / "x.pt"), ConfigError);
+}
+
+// A run stopped after an evaluation (here: its log line throws) resumes from its resume file to
+// the same policy bytes and evaluations as a run never stopped; the file is gone once finished.
+// The resume file refuses other settings, a finished run is kept, an existing policy is never
+// overwritten by another run, and a corrupt resume file is a DataError naming it.
+TEST(Sac, AnInterruptedRunResumesToTheSameBytes) {
+  test::TempDir dir;
+  SacOptions o = tiny(3);
+  o.steps = 600;
+  o.start_steps = 100;
+  const SacReport whole = train_sac("reacher", o, dir / "whole.pt");
+  ASSERT_EQ(whole.evaluations.size(), 3u);
+  EXPECT_FALSE(std::filesystem::exists(sac_resume_path(dir / "whole.pt")));
+
+  struct Stopped {};
+  const std::string cut = dir / "cut.pt";
+  EXPECT_THROW(train_sac("reacher", o, cut,
+                         [](const std::string& line) {
+                           if (line.find("] 400/600 steps") != std::string::npos) throw Stopped{};
+                         }),
+               Stopped);
+  ASSERT_TRUE(std::filesystem::exists(sac_resume_path(cut)));
+  SacOptions other = o;
+  other.lr = 1e-3;
+  try {
+    train_sac("reacher", other, cut);
+    ADD_FAILURE() << "a resume file of other settings was used";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find(sac_resume_path(cut)), std::string::npos) << e.what();
+  }
+
+  std::vector<std::string> lines;
+  const SacReport resumed = train_sac("reacher", o, cut, [&](const std::string& l) { lines.push_back(l); });
+  ASSERT_FALSE(lines.empty());
+  EXPECT_NE(lines[0].find("resuming"), std::string::npos) << lines[0];
+  EXPECT_NE(lines[0].find("at step 400/600"), std::string::npos) << lines[0];
+  EXPECT_TRUE(bytes(dir / "whole.pt") == bytes(cut));  // (not printed: binary)
+  ASSERT_EQ(resumed.evaluations.size(), whole.evaluations.size());
+  for (size_t i = 0; i < whole.evaluations.size(); ++i) {
+    EXPECT_EQ(resumed.evaluations[i].steps, whole.evaluations[i].steps);
+    EXPECT_EQ(resumed.evaluations[i].mean_return, whole.evaluations[i].mean_return) << i;
+  }
+  EXPECT_EQ(resumed.episodes, whole.episodes);
+  EXPECT_FALSE(std::filesystem::exists(sac_resume_path(cut)));
+
+  // Finished: the same command trains nothing and returns the record.
+  lines.clear();
+  const SacReport again = train_sac("reacher", o, cut, [&](const std::string& l) { lines.push_back(l); });
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_NE(lines[0].find("kept"), std::string::npos) << lines[0];
+  EXPECT_EQ(again.best.steps, whole.best.steps);
+  EXPECT_EQ(again.best.mean_return, whole.best.mean_return);
+  // Another run into the finished file: refused, the policy untouched.
+  const std::string before = bytes(cut);
+  EXPECT_THROW(train_sac("reacher", other, cut), ConfigError);
+  EXPECT_TRUE(bytes(cut) == before);
+
+  std::ofstream(sac_resume_path(dir / "x.pt")) << "not a resume file";
+  try {
+    train_sac("reacher", o, dir / "x.pt");
+    ADD_FAILURE() << "a corrupt resume file was accepted";
+  } catch (const DataError& e) {
+    EXPECT_NE(std::string(e.what()).find("x.pt.resume"), std::string::npos) << e.what();
+  }
+}
+
+// An env restored from a snapshot steps on exactly as the original (set_state, which clears
+// the solver's warm start, need not).
+TEST(Sac, EnvSnapshotContinuesBitForBit) {
+  Env a("hopper"), b("hopper");
+  a.reset(5);
+  Rng rng(7);
+  auto action = [&] {
+    std::vector<double> u(static_cast<size_t>(a.action_dim()));
+    for (double& x : u) x = rng.uniform(-1.0, 1.0);
+    return u;
+  };
+  for (int t = 0; t < 20; ++t) a.step(action());
+  b.reset(99);
+  b.restore(a.snapshot());
+  EXPECT_EQ(b.steps(), a.steps());
+  for (int t = 0; t < 30; ++t) {
+    const std::vector<double> u = action();
+    const StepResult ra = a.step(u), rb = b.step(u);
+    ASSERT_EQ(ra.reward, rb.reward) << t;
+    ASSERT_TRUE(a.state() == b.state()) << t;
+  }
+  EXPECT_THROW(b.restore(std::vector<double>(3, 0.0)), SimError);
 }
 
 }  // namespace
