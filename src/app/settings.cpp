@@ -112,6 +112,7 @@ void visit_settings(S& st, V&& v) {
   v.integer("train", "threads", st.train.threads, 1, 256);
   v.text("train", "device", st.train.device, {"cpu", "cuda", "auto"});
   v.integer("train", "max_samples", st.train.max_samples, 0, kMaxI64);
+  v.integer("train", "epoch_samples", st.train.epoch_samples, 0, kMaxI64);
   v.text("train", "out", st.train.out, {});
 
   v.text("eval", "suite", st.eval.suite, {});

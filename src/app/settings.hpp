@@ -63,6 +63,10 @@ struct TrainSettings {
   int threads = 2;               // torch intra-op threads
   std::string device = "cpu";    // cpu | cuda | auto
   long max_samples = 0;          // 0: every sample of the data folder
+  // Samples per epoch (0: one pass over the training split): fewer take a fresh seeded subset
+  // each epoch, more take several shuffled passes, so that runs on folders of any size get the
+  // same number of updates (the paper's fixed iteration count). Methods trained by train.epochs.
+  long epoch_samples = 0;
   std::string out = "runs/quickstart/train";
 };
 

@@ -181,6 +181,7 @@ std::string train_member(DimMember& m, const std::vector<SampleRef>& train, cons
   plan.last_epoch = epochs;
   plan.batch_size = s.train.batch_size;
   plan.train_size = train.size();
+  plan.epoch_samples = static_cast<size_t>(s.train.epoch_samples);
   plan.val_size = samples.val.size();
   plan.shuffle_seed = member_seed ^ kShuffleStream;
   // The NLL of a badly placed sample can be huge while sigma is small: bound the step.
@@ -289,7 +290,9 @@ TrainSummary train_dim(const Settings& settings_in, const TrainRequest& req) {
     if (m.finished) continue;
     member_train[m.index] =
         member_samples(samples, req.method, s.train.seed, m.index, m.episodes);
-    to_train += static_cast<long>(member_train[m.index].size()) * epochs;
+    const long per_epoch = s.train.epoch_samples > 0 ? s.train.epoch_samples
+                                                     : static_cast<long>(member_train[m.index].size());
+    to_train += per_epoch * epochs;
   }
   std::optional<Progress> progress;
   if (!req.quiet && to_train > 0) progress.emplace("train " + req.method, to_train);

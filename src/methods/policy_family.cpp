@@ -37,27 +37,12 @@ bool may_differ(const std::string& table, const std::string& key) {
                               key == "device");
 }
 
-std::string optimizer_bytes(const torch::optim::Optimizer& opt) {
-  torch::serialize::OutputArchive archive;
-  opt.save(archive);
-  std::ostringstream os;
-  archive.save_to(os);
-  return os.str();
-}
-
 // The networks and optimiser of the last committed epoch in `out`.
 void restore(PolicyNets& nets, torch::optim::Adam& opt, const std::string& out,
              const torch::Device& device) {
   nets.load_bytes(read_file_bytes(out + "/" + kModelFile), device, out + "/" + kModelFile);
-  try {
-    std::istringstream is(read_file_bytes(out + "/" + kOptimizerFile));
-    torch::serialize::InputArchive archive;
-    archive.load_from(is, device);
-    opt.load(archive);
-  } catch (const c10::Error&) {
-    throw DataError(out + "/" + kOptimizerFile + " does not fit the network; delete the folder "
-                    "to start over");
-  }
+  load_optimizer_bytes(opt, read_file_bytes(out + "/" + kOptimizerFile), device,
+                       out + "/" + kOptimizerFile, "; delete the folder to start over");
 }
 
 std::string join_dirs(const std::vector<std::string>& dirs) {
@@ -238,17 +223,17 @@ TrainSummary train_policy_family(const Settings& settings_in, const TrainRequest
   std::unique_ptr<Objective> objective = method.objective(ctx, record);
   ck.method_record = record;
 
-  const size_t n_train = data.train().size();
-  std::optional<Progress> progress;
-  if (!req.quiet && ck.epochs_done < epochs)
-    progress.emplace("train " + req.method, static_cast<long>(n_train) * epochs,
-                     static_cast<long>(n_train) * ck.epochs_done);
-
   LoopPlan plan;
   plan.first_epoch = ck.epochs_done + 1;
   plan.last_epoch = epochs;
   plan.batch_size = s.train.batch_size;
-  plan.train_size = n_train;
+  plan.train_size = data.train().size();
+  plan.epoch_samples = static_cast<size_t>(s.train.epoch_samples);
+  const long per_epoch = static_cast<long>(epoch_size(plan));
+  std::optional<Progress> progress;
+  if (!req.quiet && ck.epochs_done < epochs)
+    progress.emplace("train " + req.method, per_epoch * epochs, per_epoch * ck.epochs_done);
+
   plan.val_size = data.val().size();
   plan.shuffle_seed = s.train.seed ^ kShuffleStream;
   plan.torch_seed = s.train.seed;
@@ -268,7 +253,7 @@ TrainSummary train_policy_family(const Settings& settings_in, const TrainRequest
     const std::string model_bytes = nets.save_bytes();
     write_file_atomic(out + "/" + pending_name(kModelFile, r.epoch), model_bytes);
     if (r.improved) write_file_atomic(out + "/" + pending_name(kBestFile, r.epoch), model_bytes);
-    write_file_atomic(out + "/" + pending_name(kOptimizerFile, r.epoch), optimizer_bytes(opt));
+    write_file_atomic(out + "/" + pending_name(kOptimizerFile, r.epoch), save_optimizer_bytes(opt));
     ck.metrics.push_back(r.metrics());
     ck.epochs_done = r.epoch;
     write_file_atomic(out + "/" + kCheckpointJson, checkpoint_to_json(ck).dump(2) + "\n");

@@ -66,6 +66,22 @@ void set_learning_rate(torch::optim::Optimizer& opt, double lr) {
   for (auto& group : opt.param_groups()) group.options().set_lr(lr);
 }
 
+size_t epoch_size(const LoopPlan& plan) {
+  return plan.epoch_samples > 0 ? plan.epoch_samples : plan.train_size;
+}
+
+std::vector<uint32_t> epoch_order(const LoopPlan& plan, int epoch) {
+  const uint64_t seed = derive_seed(plan.shuffle_seed, static_cast<uint64_t>(epoch));
+  std::vector<uint32_t> order = shuffled_order(plan.train_size, seed);
+  const size_t want = plan.train_size == 0 ? 0 : epoch_size(plan);
+  for (uint64_t pass = 1; order.size() < want; ++pass) {
+    const std::vector<uint32_t> more = shuffled_order(plan.train_size, derive_seed(seed, pass));
+    order.insert(order.end(), more.begin(), more.end());
+  }
+  order.resize(want);
+  return order;
+}
+
 double validation_loss(Objective& objective, size_t val_size, int batch_size) {
   torch::NoGradGuard no_grad;
   objective.set_training(false);
@@ -84,7 +100,6 @@ LoopTotals train_epochs(Objective& objective, torch::optim::Optimizer& opt, cons
                         const std::function<void(const EpochResult&)>& after_epoch) {
   LoopTotals totals;
   set_learning_rate(opt, state.lr);
-  const size_t n_train = plan.train_size;
   const size_t B = static_cast<size_t>(plan.batch_size);
   for (int epoch = plan.first_epoch; epoch <= plan.last_epoch; ++epoch) {
     EpochResult r;
@@ -93,8 +108,8 @@ LoopTotals train_epochs(Objective& objective, torch::optim::Optimizer& opt, cons
     r.started = Clock::now();
     if (plan.torch_seed)
       torch::manual_seed(derive_seed(*plan.torch_seed, static_cast<uint64_t>(epoch)));
-    const std::vector<uint32_t> order =
-        shuffled_order(n_train, derive_seed(plan.shuffle_seed, static_cast<uint64_t>(epoch)));
+    const std::vector<uint32_t> order = epoch_order(plan, epoch);
+    const size_t n_train = order.size();
 
     objective.set_training(true);
     double loss_sum = 0;

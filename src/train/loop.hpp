@@ -47,6 +47,7 @@ struct LoopPlan {
   int first_epoch = 1, last_epoch = 1;  // epochs trained now, 1-based, inclusive
   int batch_size = 64;
   size_t train_size = 0, val_size = 0;  // samples of each split
+  size_t epoch_samples = 0;  // samples per epoch (epoch_order); 0: train_size
   uint64_t shuffle_seed = 0;
   std::optional<uint64_t> torch_seed;
   double clip_grad_norm = 0;  // > 0: bound the gradient's norm before each step
@@ -88,6 +89,12 @@ struct LoopTotals {
   double seconds = 0;   // of the training passes
   double samples_per_s() const { return seconds > 0 ? samples / seconds : 0.0; }
 };
+
+// The training rows epoch `epoch` visits, in order: shuffled_order(train_size, seed of the
+// epoch), then (epoch_samples > train_size) further shuffled passes of their own seeds, cut at
+// epoch_samples. With epoch_samples 0 or train_size, exactly one pass.
+std::vector<uint32_t> epoch_order(const LoopPlan& plan, int epoch);
+size_t epoch_size(const LoopPlan& plan);  // epoch_samples, or train_size when 0
 
 // The mean loss of the validation split (eval mode, no gradient), in batches in order.
 double validation_loss(Objective& objective, size_t val_size, int batch_size);
