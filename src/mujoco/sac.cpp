@@ -268,14 +268,17 @@ SacReport train_sac(const std::string& env_name, const SacOptions& o, const std:
   auto elapsed = [&] {
     return seconds_before + std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   };
-  auto write_record = [&] {
+  auto evaluations_json = [&] {
     nlohmann::json evals = nlohmann::json::array();
     for (const SacEvaluation& e : report.evaluations) evals.push_back(evaluation_json(e));
+    return evals;
+  };
+  auto write_record = [&] {
     nlohmann::json j = {
         {"env", env_name}, {"algorithm", "sac"}, {"options", options_json(o)},
         {"best", {{"steps", report.best.steps}, {"mean_return", report.best.mean_return},
                   {"sd_return", report.best.sd_return}}},
-        {"episodes", episodes}, {"seconds", elapsed()}, {"evaluations", evals}};
+        {"episodes", episodes}, {"seconds", elapsed()}, {"evaluations", evaluations_json()}};
     write_file_atomic(record_path, j.dump(2) + "\n");
   };
 
@@ -284,12 +287,10 @@ SacReport train_sac(const std::string& env_name, const SacOptions& o, const std:
   // run continues bit for bit (same bytes as a run never stopped).
   auto save_resume = [&](long steps_done) {
     torch::serialize::OutputArchive archive;
-    nlohmann::json evals = nlohmann::json::array();
-    for (const SacEvaluation& e : report.evaluations) evals.push_back(evaluation_json(e));
     const nlohmann::json meta = {{"env", env_name},        {"options", options_json(o, false)},
                                  {"steps_done", steps_done}, {"episodes", episodes},
                                  {"seconds", elapsed()},     {"best", evaluation_json(report.best)},
-                                 {"evaluations", evals},     {"rng", rng.state()}};
+                                 {"evaluations", evaluations_json()}, {"rng", rng.state()}};
     archive.write("meta", bytes_tensor(meta.dump()));
     for (auto& [name, m] : modules) archive.write(name, bytes_tensor(save_module_bytes(*m)));
     for (auto& [name, opt] : optimizers) archive.write(name, bytes_tensor(save_optimizer_bytes(*opt)));
