@@ -290,9 +290,8 @@ TrainSummary train_dim(const Settings& settings_in, const TrainRequest& req) {
     if (m.finished) continue;
     member_train[m.index] =
         member_samples(samples, req.method, s.train.seed, m.index, m.episodes);
-    const long per_epoch = s.train.epoch_samples > 0 ? s.train.epoch_samples
-                                                     : static_cast<long>(member_train[m.index].size());
-    to_train += per_epoch * epochs;
+    to_train += static_cast<long>(epoch_size(member_train[m.index].size(),
+                                             static_cast<size_t>(s.train.epoch_samples))) * epochs;
   }
   std::optional<Progress> progress;
   if (!req.quiet && to_train > 0) progress.emplace("train " + req.method, to_train);

@@ -66,9 +66,11 @@ void set_learning_rate(torch::optim::Optimizer& opt, double lr) {
   for (auto& group : opt.param_groups()) group.options().set_lr(lr);
 }
 
-size_t epoch_size(const LoopPlan& plan) {
-  return plan.epoch_samples > 0 ? plan.epoch_samples : plan.train_size;
+size_t epoch_size(size_t train_size, size_t epoch_samples) {
+  return epoch_samples > 0 ? epoch_samples : train_size;
 }
+
+size_t epoch_size(const LoopPlan& plan) { return epoch_size(plan.train_size, plan.epoch_samples); }
 
 std::vector<uint32_t> epoch_order(const LoopPlan& plan, int epoch) {
   const uint64_t seed = derive_seed(plan.shuffle_seed, static_cast<uint64_t>(epoch));

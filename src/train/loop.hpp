@@ -95,6 +95,7 @@ struct LoopTotals {
 // epoch_samples. With epoch_samples 0 or train_size, exactly one pass.
 std::vector<uint32_t> epoch_order(const LoopPlan& plan, int epoch);
 size_t epoch_size(const LoopPlan& plan);  // epoch_samples, or train_size when 0
+size_t epoch_size(size_t train_size, size_t epoch_samples);  // the same rule, before a plan
 
 // The mean loss of the validation split (eval mode, no gradient), in batches in order.
 double validation_loss(Objective& objective, size_t val_size, int batch_size);
