@@ -45,7 +45,7 @@ expert_steps() {
     reacher) echo 50000 ;;
     halfcheetah | hopper) echo 200000 ;;
     ant) echo 300000 ;;
-    *) echo 600000 ;;  # humanoid: ~400 (falls by step ~100) after 150k steps
+    *) echo 700000 ;;  # humanoid: 600-1000 from 60k to 640k steps, 1794 at 670k (experts/humanoid.json)
   esac
 }
 
