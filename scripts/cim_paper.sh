@@ -10,6 +10,8 @@
 #                                 # (dim.view), beside cim and dim; error incl. the paper's
 #   scripts/cim_paper.sh all      # the five above in order
 #
+# Several steps run in order (`scripts/cim_paper.sh train table1`);
+# an unknown step is refused before any of them runs.
 # Every step resumes: collect, train and eval skip what their output folders already hold, so
 # an interrupted run is continued by running the same command again; finished evaluations and
 # tables are also kept in results/cim_paper (committed, scripts/paper_lib.sh). Knobs:
@@ -78,24 +80,24 @@ train_fair() {
   done
 }
 
-case ${1:-} in
-  train) train_all ;;
-  table1) eval_agents table1 all clean "$TEST_SUITES" cs dim rip cim ;;
-  table2) eval_agents table2 all clean "$TEST_SUITES" cim cim-mlp cim-entangled ;;
-  table3) eval_agents table3 all clean town-c-regular cim cim-mlp cim-fewshot cim-mlp-fewshot ;;
-  fair)
-    train_fair
-    eval_agents fair error,stopgo clean "$TEST_SUITES" cim cim-lights=cim dim dim-vehicles=dim
-    ;;
-  all)
-    train_all
-    eval_agents table1 all clean "$TEST_SUITES" cs dim rip cim
-    eval_agents table2 all clean "$TEST_SUITES" cim cim-mlp cim-entangled
-    eval_agents table3 all clean town-c-regular cim cim-mlp cim-fewshot cim-mlp-fewshot
-    "$0" fair
-    ;;
-  *)
-    sed -n '2,24p' "$0" | sed 's/^# \{0,1\}//'
-    exit 2
-    ;;
-esac
+run_step() {
+  case $1 in
+    train) train_all ;;
+    table1) eval_agents table1 all clean "$TEST_SUITES" cs dim rip cim ;;
+    table2) eval_agents table2 all clean "$TEST_SUITES" cim cim-mlp cim-entangled ;;
+    table3) eval_agents table3 all clean town-c-regular cim cim-mlp cim-fewshot cim-mlp-fewshot ;;
+    fair)
+      train_fair
+      eval_agents fair error,stopgo clean "$TEST_SUITES" cim cim-lights=cim dim dim-vehicles=dim
+      ;;
+    all)
+      train_all
+      eval_agents table1 all clean "$TEST_SUITES" cs dim rip cim
+      eval_agents table2 all clean "$TEST_SUITES" cim cim-mlp cim-entangled
+      eval_agents table3 all clean town-c-regular cim cim-mlp cim-fewshot cim-mlp-fewshot
+      run_step fair
+      ;;
+  esac
+}
+
+run_steps "train table1 table2 table3 fair all" "$@"

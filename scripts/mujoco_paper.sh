@@ -12,6 +12,8 @@
 #   scripts/mujoco_paper.sh lr-sweep # table 12's learning rate: bc-oh at 0.1 ... 1e-4 on the first
 #                                    # env's data, validation loss on its held-out episodes
 #
+# Several steps run in order (`scripts/mujoco_paper.sh data train eval table`);
+# an unknown step is refused before any of them runs.
 # Every step resumes: train-expert continues from its .resume file; collect, train and eval
 # keep what their output folders already hold, so an interrupted run is continued by running
 # the same command again; finished evaluations and
@@ -118,16 +120,16 @@ table() {
   kept_report table return "$KEEP/eval"
 }
 
-case ${1:-} in
-  experts) experts ;;
-  data) data ;;
-  train) train ;;
-  eval) evaluate ;;
-  table) table ;;
-  all) experts; data; train; evaluate; table ;;
-  lr-sweep) lr_sweep ;;
-  *)
-    sed -n '2,28p' "$0" | sed 's/^# \{0,1\}//'
-    exit 2
-    ;;
-esac
+run_step() {
+  case $1 in
+    experts) experts ;;
+    data) data ;;
+    train) train ;;
+    eval) evaluate ;;
+    table) table ;;
+    all) for step in experts data train eval table; do run_step "$step"; done ;;
+    lr-sweep) lr_sweep ;;
+  esac
+}
+
+run_steps "experts data train eval table all lr-sweep" "$@"

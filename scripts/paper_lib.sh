@@ -99,3 +99,20 @@ eval_agents() {
   done
   kept_report "$table" "$metrics" "${dirs[@]}"
 }
+
+# run_steps "STEP..." ARGS...: the script's command line. Runs each step named in ARGS, in
+# order, with the script's run_step function. Every name is checked against the STEP list
+# before the first one runs, so a typo fails at once rather than after hours of compute.
+# Without a step, prints the script's header comment (its usage) and exits 2.
+run_steps() {
+  local known=" $1 " step; shift
+  if [[ $# == 0 ]]; then
+    awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"
+    exit 2
+  fi
+  for step in "$@"; do
+    [[ $known == *" $step "* ]] ||
+      { echo "error: unknown step '$step' (steps:${known% })" >&2; exit 2; }
+  done
+  for step in "$@"; do run_step "$step"; done
+}

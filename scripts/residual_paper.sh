@@ -16,6 +16,8 @@
 #                                       # bc-oh, keyframe and residual (failure modes, A and B)
 #   scripts/residual_paper.sh all       # everything above in order
 #
+# Several steps run in order (`scripts/residual_paper.sh train table7 table9`);
+# an unknown step is refused before any of them runs.
 # Every step resumes: collect, train and eval skip what their output folders already hold, so
 # an interrupted run is continued by running the same command again. Finished evaluations,
 # probe reports and tables are also kept in results/residual_paper (committed; see
@@ -123,35 +125,35 @@ PY
 
 A="town-a-regular town-a-dense"
 B="town-b-regular town-b-dense"
-case ${1:-} in
-  train) train_all ;;
-  train-ablations) train_ablations ;;
-  table7) eval_agents table7 failure,lights clean "$A" $METHODS ;;
-  table8) eval_agents table8 failure shifted "$A" $METHODS ;;
-  table9) eval_agents table9 failure clean "$B" $METHODS ;;
-  stopgo) eval_agents stopgo stopgo,outcomes clean "town-a-stopgo town-b-stopgo" $METHODS ;;
-  table10) eval_agents table10 lights clean town-a-dense bc-oh keyframe residual ;;
-  table11) eval_agents table11 outcomes clean town-a-dense two-stream-bc-oh=residual \
-             two-stream-keyframe=residual bc-oh keyframe residual ;;
-  branches) eval_agents branches outcomes clean town-a-dense residual residual-b2=residual \
-              residual-b4=residual ;;
-  probe) probe_all ;;
-  families)
-    for s in $SEEDS; do
-      "$CD" train --config configs/cim_paper.toml --method cim --data "$DATA" --seed "$s" \
-        --out "$OUT/train/seed$s/cim"
-    done
-    eval_agents families failure clean "$A $B" bc-oh keyframe residual cim
-    ;;
-  all)
-    "$0" train
-    "$0" train-ablations
-    for step in table7 table8 table9 stopgo table10 table11 branches probe families; do
-      "$0" "$step"
-    done
-    ;;
-  *)
-    sed -n '2,31p' "$0" | sed 's/^# \{0,1\}//'
-    exit 2
-    ;;
-esac
+run_step() {
+  case $1 in
+    train) train_all ;;
+    train-ablations) train_ablations ;;
+    table7) eval_agents table7 failure,lights clean "$A" $METHODS ;;
+    table8) eval_agents table8 failure shifted "$A" $METHODS ;;
+    table9) eval_agents table9 failure clean "$B" $METHODS ;;
+    stopgo) eval_agents stopgo stopgo,outcomes clean "town-a-stopgo town-b-stopgo" $METHODS ;;
+    table10) eval_agents table10 lights clean town-a-dense bc-oh keyframe residual ;;
+    table11) eval_agents table11 outcomes clean town-a-dense two-stream-bc-oh=residual \
+               two-stream-keyframe=residual bc-oh keyframe residual ;;
+    branches) eval_agents branches outcomes clean town-a-dense residual residual-b2=residual \
+                residual-b4=residual ;;
+    probe) probe_all ;;
+    families)
+      for s in $SEEDS; do
+        "$CD" train --config configs/cim_paper.toml --method cim --data "$DATA" --seed "$s" \
+          --out "$OUT/train/seed$s/cim"
+      done
+      eval_agents families failure clean "$A $B" bc-oh keyframe residual cim
+      ;;
+    all)
+      run_step train
+      run_step train-ablations
+      for step in table7 table8 table9 stopgo table10 table11 branches probe families; do
+        run_step "$step"
+      done
+      ;;
+  esac
+}
+
+run_steps "train train-ablations table7 table8 table9 stopgo table10 table11 branches probe families all" "$@"

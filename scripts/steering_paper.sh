@@ -15,6 +15,8 @@
 #                                       # fca, keyframe) on town-a/b regular and dense
 #   scripts/steering_paper.sh all       # the five above in order
 #
+# Several steps run in order (`scripts/steering_paper.sh train table1 dense`);
+# an unknown step is refused before any of them runs.
 # Every step resumes (collect, train and eval skip what their folders hold) and finished
 # evaluations and tables are kept in results/steering (scripts/paper_lib.sh). The experiment
 # configs are the papers' configs with [ego] lateral = "free" and a share of augmented frames
@@ -126,26 +128,26 @@ train_step() {
   done
 }
 
-case ${1:-} in
-  expert) expert_step ;;
-  bench) bench_step ;;
-  train) train_step ;;
-  table1)
-    CONFIG=$(free_config cim configs/cim_paper.toml) OUT=$OUT/cim KEEP=$KEEP/cim CIM_PATH=dim \
-      eval_agents table1 all clean \
-      "town-a-regular town-a-dense town-a-stopgo town-b-regular town-b-dense town-b-stopgo" \
-      cs dim rip cim
-    ;;
-  dense)
-    CONFIG=$(free_config residual configs/residual_paper.toml) OUT=$OUT/residual \
-      KEEP=$KEEP/residual eval_agents dense failure,lateral clean \
-      "town-a-regular town-a-dense town-b-regular town-b-dense" $METHODS
-    ;;
-  all)
-    for step in expert bench train table1 dense; do "$0" "$step"; done
-    ;;
-  *)
-    sed -n '2,30p' "$0" | sed 's/^# \{0,1\}//'
-    exit 2
-    ;;
-esac
+run_step() {
+  case $1 in
+    expert) expert_step ;;
+    bench) bench_step ;;
+    train) train_step ;;
+    table1)
+      CONFIG=$(free_config cim configs/cim_paper.toml) OUT=$OUT/cim KEEP=$KEEP/cim CIM_PATH=dim \
+        eval_agents table1 all clean \
+        "town-a-regular town-a-dense town-a-stopgo town-b-regular town-b-dense town-b-stopgo" \
+        cs dim rip cim
+      ;;
+    dense)
+      CONFIG=$(free_config residual configs/residual_paper.toml) OUT=$OUT/residual \
+        KEEP=$KEEP/residual eval_agents dense failure,lateral clean \
+        "town-a-regular town-a-dense town-b-regular town-b-dense" $METHODS
+      ;;
+    all)
+      for step in expert bench train table1 dense; do run_step "$step"; done
+      ;;
+  esac
+}
+
+run_steps "expert bench train table1 dense all" "$@"
