@@ -47,7 +47,7 @@ expert_steps() {
     reacher) echo 50000 ;;
     halfcheetah | hopper) echo 200000 ;;
     ant) echo 300000 ;;
-    *) echo 700000 ;;  # humanoid: 600-1000 from 60k to 640k steps, 1794 at 670k (experts/humanoid.json)
+    *) echo 700000 ;;  # humanoid: 340-1000 from 60k to 640k steps, 1794 at 670k (experts/humanoid.json)
   esac
 }
 
