@@ -90,13 +90,7 @@ run_step() {
       train_fair
       eval_agents fair error,stopgo clean "$TEST_SUITES" cim cim-lights=cim dim dim-vehicles=dim
       ;;
-    all)
-      train_all
-      eval_agents table1 all clean "$TEST_SUITES" cs dim rip cim
-      eval_agents table2 all clean "$TEST_SUITES" cim cim-mlp cim-entangled
-      eval_agents table3 all clean town-c-regular cim cim-mlp cim-fewshot cim-mlp-fewshot
-      run_step fair
-      ;;
+    all) for step in train table1 table2 table3 fair; do run_step "$step"; done ;;
   esac
 }
 

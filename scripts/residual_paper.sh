@@ -147,9 +147,8 @@ run_step() {
       eval_agents families failure clean "$A $B" bc-oh keyframe residual cim
       ;;
     all)
-      run_step train
-      run_step train-ablations
-      for step in table7 table8 table9 stopgo table10 table11 branches probe families; do
+      for step in train train-ablations table7 table8 table9 stopgo table10 table11 branches \
+        probe families; do
         run_step "$step"
       done
       ;;
