@@ -134,6 +134,8 @@ void visit_settings(S& st, V&& v) {
   v.integer("vae", "latents", st.vae.latents, 1, 4096);
   v.number("vae", "beta", st.vae.beta, 0, 1000);
   v.integer("vae", "epochs", st.vae.epochs, 1, 100000);
+  v.integer("vae", "patience", st.vae.patience, 0, 100000);
+  v.number("vae", "min_improvement", st.vae.min_improvement, 0, 1);
   v.integer("vae", "batch_size", st.vae.batch_size, 1, 65536);
   v.number("vae", "lr", st.vae.lr, 1e-9, 1);
   v.integer("vae", "max_frames", st.vae.max_frames, 0, kMaxI64);
@@ -167,6 +169,7 @@ void visit_settings(S& st, V&& v) {
   v.number("dim", "goal_distance", st.dim.goal_distance, 0, 1000);
   v.number("dim", "goal_weight", st.dim.goal_weight, 0, 1000);
   v.integer("dim", "ensemble", st.dim.ensemble, 1, 64);
+  v.integer("dim", "patience", st.dim.patience, 0, 100000);
   v.text("dim", "aggregation", st.dim.aggregation, {"worst", "mean"});
   v.text("dim", "view", st.dim.view, {});
 

@@ -200,6 +200,25 @@ class VaeObjective : public Objective {
   torch::Tensor batch_;
 };
 
+// The mean KL(q(z_i | x) || N(0, 1)) of each latent over frames (eval mode, no gradient).
+std::vector<double> mean_kl_per_latent(BetaVae& vae, const EpisodeSet& eps, const GreyView& view,
+                                       const std::vector<std::pair<int, int>>& frames,
+                                       const torch::Device& device) {
+  torch::NoGradGuard no_grad;
+  vae->eval();
+  constexpr int B = 512;
+  torch::Tensor batch = torch::empty({B, 1, kVaeSize, kVaeSize});
+  torch::Tensor sum = torch::zeros({vae->latents()}, torch::kFloat64);
+  for (size_t begin = 0; begin < frames.size(); begin += B) {
+    const int64_t n = std::min<int64_t>(B, static_cast<int64_t>(frames.size() - begin));
+    fill_views(eps, view, frames.data() + begin, nullptr, n, batch.data_ptr<float>());
+    auto [mu, logvar] = vae->encode(batch.narrow(0, 0, n).to(device));
+    sum += kl_per_latent(mu, logvar).to(torch::kCPU, torch::kFloat64).sum(0);
+  }
+  sum /= static_cast<double>(std::max<size_t>(frames.size(), 1));
+  return std::vector<double>(sum.data_ptr<double>(), sum.data_ptr<double>() + sum.numel());
+}
+
 json train_vae(const Settings& s, const EpisodeSet& eps, const GreyView& view,
                const torch::Device& device, const std::string& out, bool quiet) {
   const auto start = Clock::now();
@@ -228,6 +247,8 @@ json train_vae(const Settings& s, const EpisodeSet& eps, const GreyView& view,
   plan.shuffle_seed = s.train.seed ^ kVaeOrderStream;
   plan.torch_seed = s.train.seed ^ kVaeNoiseStream;  // the reparameterisation noise
   plan.progress = progress ? &*progress : nullptr;
+  plan.stop_patience = s.vae.patience;
+  plan.stop_min_improvement = s.vae.min_improvement;
   const int epochs = s.vae.epochs;
   plan.note = [epochs](int epoch, double v) { return epoch_note(epoch, epochs, "loss", v, 2); };
   LoopState state;
@@ -247,16 +268,27 @@ json train_vae(const Settings& s, const EpisodeSet& eps, const GreyView& view,
   if (progress) progress->finish();
   write_file_atomic(out + "/" + kCimVaeFile, save_module_bytes(*vae));
   write_file_atomic(out + "/" + kCimVaeMetrics, metrics);
+  const std::vector<double> kl = mean_kl_per_latent(vae, eps, view, frames, device);
+  const int active = active_latents(kl);
   json fig = last;
   fig["frames"] = static_cast<long>(n_frames);
-  fig["epochs"] = s.vae.epochs;
+  fig["epochs"] = totals.last_epoch;
+  fig["max_epochs"] = s.vae.epochs;
+  fig["stopped_early"] = totals.stopped_early;
   fig["beta"] = s.vae.beta;
+  fig["kl_per_latent"] = kl;
+  fig["active_latents"] = active;
+  fig["active_kl_threshold"] = kActiveKlNats;
   fig["seconds"] = seconds_since(start);
   fig["train_seconds"] = totals.seconds;
-  say(quiet, "  vae: " + std::to_string(s.vae.epochs) + " epochs on " + std::to_string(n_frames) +
-                 " frames, recon " + fmt("%.2f", last["recon"].get<double>()) + " kl " +
+  say(quiet, "  vae: " + std::to_string(totals.last_epoch) + " epochs" +
+                 (totals.stopped_early ? " (the loss stopped falling)" : "") + " on " +
+                 std::to_string(n_frames) + " frames, recon " +
+                 fmt("%.2f", last["recon"].get<double>()) + " kl " +
                  fmt("%.2f", last["kl"].get<double>()) + " (beta " + fmt("%g", s.vae.beta) +
-                 ") per image, " + fmt("%.0f", totals.samples_per_s()) + " images/s, " +
+                 ") per image, " + std::to_string(active) + " of " + std::to_string(s.vae.latents) +
+                 " latents active (KL > " + fmt("%g", kActiveKlNats) + " nats), " +
+                 fmt("%.0f", totals.samples_per_s()) + " images/s, " +
                  format_duration(seconds_since(start)));
   return fig;
 }

@@ -186,6 +186,7 @@ std::string train_member(DimMember& m, const std::vector<SampleRef>& train, cons
   plan.shuffle_seed = member_seed ^ kShuffleStream;
   // The NLL of a badly placed sample can be huge while sigma is small: bound the step.
   plan.clip_grad_norm = 10.0;
+  plan.stop_patience = d.patience;  // any better validation NLL restarts the count
   plan.progress = progress;
   const std::string member = "member " + std::to_string(m.index + 1) + "/" +
                              std::to_string(d.ensemble) + " ";

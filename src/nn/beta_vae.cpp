@@ -1,5 +1,7 @@
 #include "nn/beta_vae.hpp"
 
+#include <algorithm>
+
 #include "core/error.hpp"
 
 namespace cd {
@@ -49,14 +51,23 @@ VaeOutput BetaVaeImpl::forward(const torch::Tensor& x, bool sample) {
   return {decode(z), mu, logvar};
 }
 
+torch::Tensor kl_per_latent(const torch::Tensor& mu, const torch::Tensor& logvar) {
+  // KL(N(mu, sigma^2) || N(0, 1)) = 0.5 * (mu^2 + sigma^2 - 1 - log sigma^2) per latent.
+  return 0.5 * (mu.pow(2) + logvar.exp() - 1.0 - logvar);
+}
+
+int active_latents(const std::vector<double>& mean_kl) {
+  return static_cast<int>(
+      std::count_if(mean_kl.begin(), mean_kl.end(), [](double k) { return k > kActiveKlNats; }));
+}
+
 VaeLoss vae_loss(const torch::Tensor& logits, const torch::Tensor& target, const torch::Tensor& mu,
                  const torch::Tensor& logvar, double beta) {
   const int64_t b = logits.size(0);
   torch::Tensor bce = torch::binary_cross_entropy_with_logits(
       logits.reshape({b, -1}), target.reshape({b, -1}), {}, {}, at::Reduction::None);
   torch::Tensor recon = bce.sum(1).mean();
-  // KL(N(mu, sigma^2) || N(0, 1)) = 0.5 * (mu^2 + sigma^2 - 1 - log sigma^2) per latent.
-  torch::Tensor kl = (0.5 * (mu.pow(2) + logvar.exp() - 1.0 - logvar)).sum(1).mean();
+  torch::Tensor kl = kl_per_latent(mu, logvar).sum(1).mean();
   return {recon + beta * kl, recon, kl};
 }
 

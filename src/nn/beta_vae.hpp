@@ -11,6 +11,8 @@
 // summed over the latents; the batch loss is the mean over images.
 //
 // This header includes torch: include it only from the .cpp files that run the network.
+#include <vector>
+
 #include <torch/torch.h>
 
 namespace cd {
@@ -47,6 +49,15 @@ struct BetaVaeImpl : torch::nn::Module {
   int latents_;
 };
 TORCH_MODULE(BetaVae);
+
+// KL(N(mu, sigma^2) || N(0, 1)) of each latent of each image: B x latents.
+torch::Tensor kl_per_latent(const torch::Tensor& mu, const torch::Tensor& logvar);
+
+// A latent is active when its KL, averaged over the data, exceeds this many nats: the others
+// carry (almost) no information about the image (the usual count for posterior collapse).
+inline constexpr double kActiveKlNats = 0.01;
+// How many of the latents' mean KLs exceed kActiveKlNats.
+int active_latents(const std::vector<double>& mean_kl);
 
 // The loss above for logits/targets of B x 1 x 64 x 64 (targets in [0, 1]).
 VaeLoss vae_loss(const torch::Tensor& logits, const torch::Tensor& target, const torch::Tensor& mu,

@@ -26,7 +26,10 @@ struct VaeSettings {
   std::string view = "vehicles";  // BEV channel(s) merged into the grey input, "a+b" for several
   int latents = 128;
   double beta = 6.0;     // cim and cim-mlp; cim-entangled trains with beta = 1
-  int epochs = 4;
+  int epochs = 4;        // at most; fewer when the patience rule stops it
+  int patience = 0;      // stop after this many epochs in a row whose loss fell by less than
+                         // min_improvement of the last clear improvement; 0: train every epoch
+  double min_improvement = 0.01;
   int batch_size = 64;
   double lr = 1e-3;
   long max_frames = 30000;  // seeded subset of the data's frames it trains on, 0 = all
@@ -46,6 +49,8 @@ struct DimSettings {
   double goal_distance = 20;  // m along the route: the goal the plan is pulled toward
   double goal_weight = 0.02;  // weight of -|last waypoint - goal|^2 (per m^2) in the objective
   int ensemble = 3;           // rip: DIMs trained on bootstrap resamples of the episodes
+  int patience = 0;  // a member stops after this many epochs without a better validation
+                     // NLL (train.epochs at most); 0: every epoch
   std::string aggregation = "worst";  // rip: worst (min over members) | mean
   // The BEV channels the model sees, "a+b" (sense/grey_view.hpp); the others are blank.
   // Empty: all of them. "vehicles" matches cim's default view (a like-for-like baseline).

@@ -3,6 +3,7 @@
 #include "train/request.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 #include "core/error.hpp"
@@ -147,9 +148,25 @@ LoopTotals train_epochs(Objective& objective, torch::optim::Optimizer& opt, cons
       state.bad_epochs = 0;
       set_learning_rate(opt, state.lr);
     }
+    bool stop = false;
+    if (plan.stop_patience > 0) {
+      if (!state.has_stop_ref ||
+          selection < state.stop_ref - plan.stop_min_improvement * std::abs(state.stop_ref)) {
+        state.has_stop_ref = true;
+        state.stop_ref = selection;
+        state.stall_epochs = 0;
+      } else {
+        stop = ++state.stall_epochs >= plan.stop_patience;
+      }
+    }
+    totals.last_epoch = epoch;
     after_epoch(r);
     // CAUSALDRIVE_INJECT_CRASH=train:<epoch> (core/fault.hpp): killed with the epoch committed.
     inject_crash("train", epoch, "");
+    if (stop && epoch < plan.last_epoch) {
+      totals.stopped_early = true;
+      break;
+    }
   }
   return totals;
 }

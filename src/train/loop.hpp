@@ -55,6 +55,11 @@ struct LoopPlan {
   // lr_patience epochs without a better one, lr = max(lr * lr_decay, lr_min). < 0: constant lr.
   int lr_patience = -1;
   double lr_decay = 1, lr_min = 0;
+  // Early stop: training ends after stop_patience epochs in a row whose selection loss is not
+  // below the reference by more than stop_min_improvement x |reference| (the reference is the
+  // loss of the last epoch that was). <= 0: every epoch up to last_epoch is trained.
+  int stop_patience = 0;
+  double stop_min_improvement = 0;
   Progress* progress = nullptr;                            // advanced batch by batch
   std::function<std::string(int epoch, double loss)> note;  // its note after a batch
 };
@@ -66,6 +71,9 @@ struct LoopState {
   double best_loss = 0;  // selection loss of best_epoch
   int bad_epochs = 0;    // epochs since the last improvement (plateau rule)
   double lr = 0;         // learning rate of the next epoch
+  bool has_stop_ref = false;
+  double stop_ref = 0;   // selection loss of the last clear improvement (early stop)
+  int stall_epochs = 0;  // epochs since then
 };
 
 struct EpochResult {
@@ -87,6 +95,8 @@ struct EpochResult {
 struct LoopTotals {
   long samples = 0;     // trained in this call
   double seconds = 0;   // of the training passes
+  int last_epoch = 0;   // the last epoch trained
+  bool stopped_early = false;  // the early-stop rule ended training before plan.last_epoch
   double samples_per_s() const { return seconds > 0 ? samples / seconds : 0.0; }
 };
 
@@ -100,7 +110,7 @@ size_t epoch_size(size_t train_size, size_t epoch_samples);  // the same rule, b
 // The mean loss of the validation split (eval mode, no gradient), in batches in order.
 double validation_loss(Objective& objective, size_t val_size, int batch_size);
 
-// Trains epochs plan.first_epoch..plan.last_epoch; after each, `after_epoch` sees its result
+// Trains epochs plan.first_epoch..plan.last_epoch (fewer when the early-stop rule ends it); after each, `after_epoch` sees its result
 // (the method writes what it keeps). The optimiser's learning rate is set to state.lr first.
 LoopTotals train_epochs(Objective& objective, torch::optim::Optimizer& opt, const LoopPlan& plan,
                         LoopState& state,

@@ -129,6 +129,21 @@ TEST(CimCli, PipelineWritesEveryStageAndGrangerReproducesTheTests) {
   EXPECT_EQ(run["settings"]["vae"]["beta"], 6.0);
   EXPECT_EQ(run["input"]["view_channels"], json({3}));
   EXPECT_EQ(run["figures"]["vae"]["frames"], 200);
+  // One epoch of one at most (patience 0 trains them all); the KL of each latent over the
+  // frames it trained on, and the active ones among them (> 0.01 nats).
+  const json& vf = run["figures"]["vae"];
+  EXPECT_EQ(vf["epochs"], 1);
+  EXPECT_EQ(vf["max_epochs"], 1);
+  EXPECT_EQ(vf["stopped_early"], false);
+  ASSERT_EQ(vf["kl_per_latent"].size(), 8u);
+  int active = 0;
+  for (const json& k : vf["kl_per_latent"]) {
+    EXPECT_GE(k.get<double>(), 0.0);
+    active += k.get<double>() > 0.01;
+  }
+  EXPECT_EQ(vf["active_latents"], active);
+  EXPECT_EQ(vf["active_kl_threshold"], 0.01);
+  EXPECT_NE(r.out.find(" of 8 latents active (KL > 0.01 nats)"), std::string::npos) << r.out;
   auto vae_lines = test::split_lines(test::read_text(f.run + "/vae_metrics.jsonl"));
   ASSERT_EQ(vae_lines.size(), 1u);
   for (const char* k : {"recon", "kl", "loss", "seconds", "images_per_s"})

@@ -63,6 +63,22 @@ TEST(BetaVae, LossMatchesAHandComputation) {
   EXPECT_NEAR(l.loss.item<double>() - l1.loss.item<double>(), 5.0 * kl, 1e-3);
 }
 
+TEST(BetaVae, KlPerLatentAndTheActiveCount) {
+  // Per latent: 0.5 (mu^2 + sigma^2 - 1 - log sigma^2), by hand.
+  torch::Tensor mu = torch::tensor({{1.0f, 0.0f, 0.1f}, {0.0f, 0.0f, 0.0f}});
+  torch::Tensor logvar =
+      torch::tensor({{0.0f, static_cast<float>(std::log(2.0)), 0.0f}, {0.0f, 0.0f, 0.0f}});
+  torch::Tensor kl = kl_per_latent(mu, logvar);
+  ASSERT_EQ(kl.sizes(), (std::vector<int64_t>{2, 3}));
+  EXPECT_NEAR(kl[0][0].item<double>(), 0.5, 1e-6);
+  EXPECT_NEAR(kl[0][1].item<double>(), 0.5 * (1.0 - std::log(2.0)), 1e-6);
+  EXPECT_NEAR(kl[0][2].item<double>(), 0.005, 1e-6);
+  EXPECT_NEAR(kl[1].abs().sum().item<double>(), 0.0, 1e-7);  // the prior itself: nothing
+  // Active: mean KL strictly above 0.01 nats.
+  EXPECT_EQ(active_latents({0.5, 0.011, 0.01, 0.0, 0.009}), 2);
+  EXPECT_EQ(active_latents({}), 0);
+}
+
 TEST(BetaVae, EncoderIsDeterministicAndEvalForwardUsesMu) {
   OneThread one;
   torch::manual_seed(3);

@@ -87,5 +87,57 @@ TEST(TrainLoop, TrainsOnTheEpochsRowsAndAveragesOverThem) {
   EXPECT_DOUBLE_EQ(results[0].train_loss, (6 * 4 * 5.0 + 1 * 2.0) / 25.0);
 }
 
+// Its loss (train and selection) follows a script, one value per epoch.
+struct ScriptedObjective : Objective {
+  std::vector<double> losses;
+  int epoch = 0;
+  BatchLoss loss(bool, const uint32_t*, int64_t) override { return {torch::tensor(0.0), {}}; }
+  void set_training(bool) override {}
+  BatchLoss update(const uint32_t*, int64_t, torch::optim::Optimizer&, double) override {
+    return {torch::tensor(losses.at(static_cast<size_t>(epoch))), {}};
+  }
+};
+
+// Trains with the early-stop rule; returns the epochs the callback saw.
+std::vector<int> epochs_with_stop(std::vector<double> losses, int patience, double min_improvement,
+                                  LoopTotals& totals) {
+  torch::Tensor w = torch::zeros({1}, torch::requires_grad());
+  torch::optim::Adam opt({w}, 1e-3);
+  ScriptedObjective objective;
+  objective.losses = std::move(losses);
+  LoopPlan plan = plan_of(4, 0);
+  plan.last_epoch = static_cast<int>(objective.losses.size());
+  plan.stop_patience = patience;
+  plan.stop_min_improvement = min_improvement;
+  LoopState state;
+  std::vector<int> seen;
+  totals = train_epochs(objective, opt, plan, state, [&](const EpochResult& r) {
+    seen.push_back(r.epoch);
+    ++objective.epoch;
+  });
+  return seen;
+}
+
+TEST(TrainLoop, StopsOnceTheLossStopsFallingByTheMargin) {
+  LoopTotals t;
+  // 100 -> 90 (a clear gain), then 89.5 and 89.2: less than 1% under 90 twice -> stop after 4.
+  EXPECT_EQ(epochs_with_stop({100, 90, 89.5, 89.2, 50, 40}, 2, 0.01, t),
+            (std::vector<int>{1, 2, 3, 4}));
+  EXPECT_TRUE(t.stopped_early);
+  EXPECT_EQ(t.last_epoch, 4);
+  // A clear gain (89 < 90 - 0.9) restarts the count: 3 stalls are needed after epoch 4.
+  EXPECT_EQ(epochs_with_stop({100, 90, 89.5, 89.0, 88.9, 88.5, 88.4, 10}, 2, 0.01, t),
+            (std::vector<int>{1, 2, 3, 4, 5, 6}));
+  // Margin 0: any better loss counts; a worse one is a stall.
+  EXPECT_EQ(epochs_with_stop({5, 4, 4.5, 3.9, 4.0, 4.1, 1}, 2, 0.0, t),
+            (std::vector<int>{1, 2, 3, 4, 5, 6}));
+  // Patience 0 trains every epoch; so does a rule that never fires before the last one.
+  EXPECT_EQ(epochs_with_stop({5, 5, 5, 5}, 0, 0.01, t).size(), 4u);
+  EXPECT_FALSE(t.stopped_early);
+  EXPECT_EQ(t.last_epoch, 4);
+  EXPECT_EQ(epochs_with_stop({5, 4, 3, 3}, 1, 0.0, t).size(), 4u);
+  EXPECT_FALSE(t.stopped_early);  // the stall came at the last epoch anyway
+}
+
 }  // namespace
 }  // namespace cd
