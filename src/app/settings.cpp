@@ -145,6 +145,7 @@ void visit_settings(S& st, V&& v) {
   v.text("cim", "correction", st.cim.correction, {"none", "bonferroni", "bh"});
   v.integer("cim", "max_causes", st.cim.max_causes, 0, 4096);
   v.text("cim", "selection", st.cim.selection, {"bivariate", "conditional", "partial_r2"});
+  v.text("cim", "candidates", st.cim.candidates, {"all", "active"});
   v.number("cim", "min_partial_r2", st.cim.min_partial_r2, 0, 1);
   v.integer("cim", "series_stride", st.cim.series_stride, 1, 1000);
   v.integer("cim", "history", st.cim.history, 1, 64);
@@ -168,6 +169,8 @@ void visit_settings(S& st, V&& v) {
   v.number("dim", "plan_lr", st.dim.plan_lr, 0, 100);
   v.number("dim", "goal_distance", st.dim.goal_distance, 0, 1000);
   v.number("dim", "goal_weight", st.dim.goal_weight, 0, 1000);
+  v.text("dim", "goal", st.dim.goal, {"point", "segment"});
+  v.text("dim", "plan_speed", st.dim.plan_speed, {"first", "horizon"});
   v.integer("dim", "ensemble", st.dim.ensemble, 1, 64);
   v.integer("dim", "patience", st.dim.patience, 0, 100000);
   v.text("dim", "aggregation", st.dim.aggregation, {"worst", "mean"});

@@ -102,6 +102,10 @@ struct CimSettings {
   // variance a latent's lags explain in the bivariate test, at least min_partial_r2).
   std::string selection = "partial_r2";
   double min_partial_r2 = 0.01;
+  // The latents a rule may pick: "all", or "active" (mean KL over the predictor's training
+  // frames > 0.01 nats; a latent whose posterior is the prior is no factor of the scene, its
+  // mean only wiggles). Every latent is still tested and recorded.
+  std::string candidates = "all";
   int series_stride = 5;                // simulation steps between the samples of the series
   int history = 3;                      // last values of each variable the predictor sees
   int history_stride = 5;               // simulation steps between them (= series_stride)

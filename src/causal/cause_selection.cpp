@@ -10,11 +10,19 @@ namespace cd {
 
 CauseSelection select_causes(const std::vector<std::vector<double>>& speed,
                              const std::vector<std::vector<std::vector<double>>>& latents,
-                             const CimSettings& cim, bool use_all) {
+                             const CimSettings& cim, bool use_all,
+                             const std::vector<bool>& eligible) {
   CauseSelection sel;
   sel.rule = cim.selection;
   const int m = static_cast<int>(latents.size());
   if (m == 0) throw ConfigError("cause selection: no latent variables");
+  if (!eligible.empty() && static_cast<int>(eligible.size()) != m)
+    throw Error("cause selection: " + std::to_string(eligible.size()) + " eligibility flags for " +
+                std::to_string(m) + " latents");
+  auto may_pick = [&](int i) { return eligible.empty() || eligible[static_cast<size_t>(i)]; };
+  if (!eligible.empty() && std::none_of(eligible.begin(), eligible.end(), [](bool b) { return b; }))
+    throw DataError("cause selection: no latent may be picked (cim.candidates = \"active\" and no "
+                    "latent of the VAE is active): train the VAE longer or use cim.candidates = \"all\"");
   const bool by_share = cim.selection == "partial_r2";
   if (!by_share && cim.selection != "bivariate" && cim.selection != "conditional")
     throw ConfigError("unknown cim.selection '" + cim.selection +
@@ -39,7 +47,7 @@ CauseSelection select_causes(const std::vector<std::vector<double>>& speed,
   for (int i = 0; i < m; ++i) {
     sel.tests[i].p_adjusted = adj[i];
     sel.tests[i].significant =
-        by_share ? tests[i].partial_r2 >= cim.min_partial_r2 : adj[i] <= cim.alpha;
+        may_pick(i) && (by_share ? tests[i].partial_r2 >= cim.min_partial_r2 : adj[i] <= cim.alpha);
     if (sel.tests[i].significant) significant.push_back(i);
   }
   sel.significant = static_cast<int>(significant.size());
@@ -68,8 +76,9 @@ CauseSelection select_causes(const std::vector<std::vector<double>>& speed,
     return a < b;
   };
   if (significant.empty()) {
-    std::vector<int> all(m);
-    std::iota(all.begin(), all.end(), 0);
+    std::vector<int> all;
+    for (int i = 0; i < m; ++i)
+      if (may_pick(i)) all.push_back(i);
     sel.ranked = {*std::min_element(all.begin(), all.end(), [&](int a, int b) {
       return better(a, b, by_share ? share : p);
     })};

@@ -45,9 +45,12 @@ struct CauseSelection {
 
 // speed: one series per episode; latents[i]: latent i's series per episode (same lengths).
 // use_all: cim-mlp (every latent is an input; the tests are still run and recorded).
+// eligible: the latents the rule may pick (cim.candidates), empty = all; the others are
+// tested and recorded but never significant, ranked or picked as the fallback.
 CauseSelection select_causes(const std::vector<std::vector<double>>& speed,
                              const std::vector<std::vector<std::vector<double>>>& latents,
-                             const CimSettings& cim, bool use_all);
+                             const CimSettings& cim, bool use_all,
+                             const std::vector<bool>& eligible = {});
 
 // Pearson correlation; NaN when either series is constant or they are shorter than 2.
 double pearson(const std::vector<double>& a, const std::vector<double>& b);

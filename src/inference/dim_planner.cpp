@@ -18,6 +18,12 @@ struct DimPlanner::Impl {
   DimPlanOptions options;
   torch::Tensor frame;  // 1 x C x H x W, reused
   std::vector<bool> keep;  // dim.view: the channels the model sees
+  bool speed_over_horizon = false;  // dim.plan_speed = "horizon"
+
+  void set_planning(const DimSettings& p) {
+    options = {p.plan_iterations, p.plan_lr, p.goal_weight, p.aggregation, p.goal == "segment"};
+    speed_over_horizon = p.plan_speed == "horizon";
+  }
 };
 
 DimPlanner::DimPlanner(const std::string& dir, const std::string& expected_method)
@@ -50,7 +56,7 @@ DimPlanner::DimPlanner(const std::string& dir, const std::string& expected_metho
     members.push_back(net);
   }
   impl_->ensemble = std::make_unique<DimEnsemble>(std::move(members));
-  impl_->options = {d.plan_iterations, d.plan_lr, d.goal_weight, d.aggregation};
+  impl_->set_planning(d);
   impl_->frame = torch::zeros({1, no.channels, no.height, no.width});
   impl_->keep = run->input.channel_names.empty()
                     ? std::vector<bool>(static_cast<size_t>(no.channels), true)
@@ -62,7 +68,7 @@ DimPlanner::~DimPlanner() = default;
 const DimRun& DimPlanner::run() const { return impl_->run; }
 
 void DimPlanner::set_planning(const DimSettings& p) {
-  impl_->options = {p.plan_iterations, p.plan_lr, p.goal_weight, p.aggregation};
+  impl_->set_planning(p);
 }
 
 DimStep DimPlanner::plan(const uint8_t* frame, const std::vector<double>& past, double goal_x,
@@ -86,7 +92,8 @@ DimStep DimPlanner::plan(const uint8_t* frame, const std::vector<double>& past, 
   step.objective_before = pl.objective_before;
   step.objective_after = pl.objective_after;
   step.moved_m = pl.moved_m;
-  step.target_speed = implied_speed(pl.z, d.waypoint_step, impl_->run.input.dt);
+  step.target_speed =
+      implied_speed(pl.z, d.waypoint_step, impl_->run.input.dt, impl_->speed_over_horizon);
   return step;
 }
 

@@ -29,8 +29,9 @@ class DimPlanner {
   DimPlanner& operator=(const DimPlanner&) = delete;
 
   const DimRun& run() const;
-  // The planner's own settings (plan_iterations, plan_lr, goal_weight, aggregation) from
-  // `planning` instead of the run's: they are used at inference only, never in training.
+  // The planner's own settings (plan_iterations, plan_lr, goal_weight, goal, plan_speed,
+  // aggregation) from `planning` instead of the run's: used at inference only, never in
+  // training.
   void set_planning(const DimSettings& planning);
   // frame: C*H*W bytes 0/255 of the run's input format; past: dim.past x 2 (m, ego frame,
   // most recent first); goal in the ego frame (m).

@@ -122,6 +122,8 @@ struct Encoded {
   int latents = 0;
   std::vector<long> offset;  // per episode
   std::vector<float> mu;
+  std::vector<std::vector<double>> kl_sum;  // per episode: each latent's KL summed over its frames
+  std::vector<long> encoded;                // per episode: its frames encoded
   const float* at(int e, int t) const {
     return mu.data() + (offset[e] + t) * static_cast<long>(latents);
   }
@@ -140,18 +142,18 @@ void fill_views(const EpisodeSet& eps, const GreyView& view, const std::pair<int
   });
 }
 
-Encoded encode_all(BetaVae& vae, const EpisodeSet& eps, const GreyView& view,
-                   const torch::Device& device, bool quiet) {
+// mu of frames[i] at row i, and each latent's KL summed per episode (eval mode, no gradient).
+Encoded encode_frames(BetaVae& vae, const EpisodeSet& eps, const GreyView& view,
+                      const std::vector<std::pair<int, int>>& frames, const torch::Device& device,
+                      bool quiet) {
   torch::NoGradGuard no_grad;
   vae->eval();
   Encoded enc;
   enc.latents = vae->latents();
-  std::vector<std::pair<int, int>> frames;
-  for (int e = 0; e < static_cast<int>(eps.episodes.size()); ++e) {
-    enc.offset.push_back(static_cast<long>(frames.size()));
-    for (int t = 0; t < eps.episodes[e].frames; ++t) frames.emplace_back(e, t);
-  }
   enc.mu.resize(frames.size() * enc.latents);
+  enc.kl_sum.assign(eps.episodes.size(), std::vector<double>(static_cast<size_t>(enc.latents), 0.0));
+  enc.encoded.assign(eps.episodes.size(), 0);
+  for (const auto& f : frames) ++enc.encoded[static_cast<size_t>(f.first)];
   constexpr int B = 512;
   torch::Tensor batch = torch::empty({B, 1, kVaeSize, kVaeSize});
   std::optional<Progress> progress;
@@ -159,13 +161,47 @@ Encoded encode_all(BetaVae& vae, const EpisodeSet& eps, const GreyView& view,
   for (size_t begin = 0; begin < frames.size(); begin += B) {
     const int64_t n = std::min<int64_t>(B, static_cast<int64_t>(frames.size() - begin));
     fill_views(eps, view, frames.data() + begin, nullptr, n, batch.data_ptr<float>());
-    torch::Tensor mu = vae->encode(batch.narrow(0, 0, n).to(device)).first.to(torch::kCPU).contiguous();
+    auto [mu_d, logvar] = vae->encode(batch.narrow(0, 0, n).to(device));
+    torch::Tensor mu = mu_d.to(torch::kCPU).contiguous();
     std::copy(mu.data_ptr<float>(), mu.data_ptr<float>() + n * enc.latents,
               enc.mu.begin() + static_cast<long>(begin) * enc.latents);
+    torch::Tensor kl = kl_per_latent(mu_d, logvar).to(torch::kCPU, torch::kFloat64).contiguous();
+    for (int64_t i = 0; i < n; ++i) {
+      std::vector<double>& sum = enc.kl_sum[static_cast<size_t>(frames[begin + i].first)];
+      const double* row = kl.data_ptr<double>() + i * enc.latents;
+      for (int k = 0; k < enc.latents; ++k) sum[static_cast<size_t>(k)] += row[k];
+    }
     if (progress) progress->advance(n);
   }
   if (progress) progress->finish();
   return enc;
+}
+
+// Every frame of every episode, in order (at(e, t) addresses them).
+Encoded encode_all(BetaVae& vae, const EpisodeSet& eps, const GreyView& view,
+                   const torch::Device& device, bool quiet) {
+  std::vector<std::pair<int, int>> frames;
+  std::vector<long> offset;
+  for (int e = 0; e < static_cast<int>(eps.episodes.size()); ++e) {
+    offset.push_back(static_cast<long>(frames.size()));
+    for (int t = 0; t < eps.episodes[e].frames; ++t) frames.emplace_back(e, t);
+  }
+  Encoded enc = encode_frames(vae, eps, view, frames, device, quiet);
+  enc.offset = std::move(offset);
+  return enc;
+}
+
+// Each latent's mean KL over the encoded frames of the episodes, but those of `skip` (sorted).
+std::vector<double> mean_kl(const Encoded& enc, const std::vector<int>& skip = {}) {
+  std::vector<double> kl(static_cast<size_t>(enc.latents), 0.0);
+  long frames = 0;
+  for (int e = 0; e < static_cast<int>(enc.kl_sum.size()); ++e) {
+    if (std::binary_search(skip.begin(), skip.end(), e)) continue;
+    frames += enc.encoded[static_cast<size_t>(e)];
+    for (size_t k = 0; k < kl.size(); ++k) kl[k] += enc.kl_sum[e][k];
+  }
+  for (double& v : kl) v /= static_cast<double>(std::max(frames, 1L));
+  return kl;
 }
 
 // ---- stage vae ----------------------------------------------------------------------------
@@ -199,25 +235,6 @@ class VaeObjective : public Objective {
   double beta_;
   torch::Tensor batch_;
 };
-
-// The mean KL(q(z_i | x) || N(0, 1)) of each latent over frames (eval mode, no gradient).
-std::vector<double> mean_kl_per_latent(BetaVae& vae, const EpisodeSet& eps, const GreyView& view,
-                                       const std::vector<std::pair<int, int>>& frames,
-                                       const torch::Device& device) {
-  torch::NoGradGuard no_grad;
-  vae->eval();
-  constexpr int B = 512;
-  torch::Tensor batch = torch::empty({B, 1, kVaeSize, kVaeSize});
-  torch::Tensor sum = torch::zeros({vae->latents()}, torch::kFloat64);
-  for (size_t begin = 0; begin < frames.size(); begin += B) {
-    const int64_t n = std::min<int64_t>(B, static_cast<int64_t>(frames.size() - begin));
-    fill_views(eps, view, frames.data() + begin, nullptr, n, batch.data_ptr<float>());
-    auto [mu, logvar] = vae->encode(batch.narrow(0, 0, n).to(device));
-    sum += kl_per_latent(mu, logvar).to(torch::kCPU, torch::kFloat64).sum(0);
-  }
-  sum /= static_cast<double>(std::max<size_t>(frames.size(), 1));
-  return std::vector<double>(sum.data_ptr<double>(), sum.data_ptr<double>() + sum.numel());
-}
 
 json train_vae(const Settings& s, const EpisodeSet& eps, const GreyView& view,
                const torch::Device& device, const std::string& out, bool quiet) {
@@ -268,7 +285,8 @@ json train_vae(const Settings& s, const EpisodeSet& eps, const GreyView& view,
   if (progress) progress->finish();
   write_file_atomic(out + "/" + kCimVaeFile, save_module_bytes(*vae));
   write_file_atomic(out + "/" + kCimVaeMetrics, metrics);
-  const std::vector<double> kl = mean_kl_per_latent(vae, eps, view, frames, device);
+  // Over the frames it trained on.
+  const std::vector<double> kl = mean_kl(encode_frames(vae, eps, view, frames, device, true));
   const int active = active_latents(kl);
   json fig = last;
   fig["frames"] = static_cast<long>(n_frames);
@@ -352,8 +370,12 @@ SeriesRows build_series(const EpisodeSet& eps, const Encoded& enc, int stride,
 }
 
 json causes_json(const std::string& method, const CimSettings& cim, const CauseSelection& sel,
-                 const SeriesRows& s, const EpisodeSet& eps) {
+                 const SeriesRows& s, const EpisodeSet& eps, const std::vector<double>& kl,
+                 const std::vector<bool>& eligible) {
   json j;
+  std::vector<int> active;
+  for (size_t k = 0; k < kl.size(); ++k)
+    if (kl[k] > kActiveKlNats) active.push_back(static_cast<int>(k));
   j["target"] = "speed";
   j["method"] = method;
   j["selection"] = sel.rule;
@@ -363,6 +385,8 @@ json causes_json(const std::string& method, const CimSettings& cim, const CauseS
   j["correction"] = cim.correction;
   j["max_causes"] = cim.max_causes;
   j["series_stride"] = cim.series_stride;
+  j["candidates"] = cim.candidates;
+  j["active_latents"] = active;  // mean KL > 0.01 nats on the predictor's training episodes
   j["rows"] = sel.rows;
   j["series_rows"] = static_cast<long>(s.rows.size());
   j["threshold_p"] = sel.threshold_p;
@@ -380,6 +404,7 @@ json causes_json(const std::string& method, const CimSettings& cim, const CauseS
                    {"df_num", t.test.df_num},
                    {"df_den", t.test.df_den},
                    {"partial_r2", json_number(t.test.partial_r2)},
+                   {"kl", kl[static_cast<size_t>(t.index)]},
                    {"significant", t.significant},
                    {"selected", t.selected}});
   j["latents"] = lat;
@@ -424,7 +449,8 @@ json causes_json(const std::string& method, const CimSettings& cim, const CauseS
   for (const char* rule : {"bivariate", "conditional", "partial_r2"}) {
     CimSettings c = cim;
     c.selection = rule;
-    const CauseSelection other = rule == sel.rule ? sel : select_causes(s.speed, s.latents, c, false);
+    const CauseSelection other =
+        rule == sel.rule ? sel : select_causes(s.speed, s.latents, c, false, eligible);
     json picked = json::array();
     for (int i : other.ranked) {
       std::string cause;
@@ -434,7 +460,10 @@ json causes_json(const std::string& method, const CimSettings& cim, const CauseS
           top = v.get<double>();
           cause = name;
         }
-      picked.push_back({{"index", i}, {"strongest_cause", cause}, {"r", top}});
+      picked.push_back({{"index", i},
+                        {"strongest_cause", cause},
+                        {"r", top},
+                        {"active", kl[static_cast<size_t>(i)] > kActiveKlNats}});
     }
     rules[rule] = {{"passing", other.significant},
                    {"fallback", other.fallback},
@@ -642,15 +671,22 @@ struct StagedRecord {
 void causes_stage(const Settings& s, const std::string& method, const EpisodeSet& eps,
                   const Encoded& enc, StagedRecord& run, bool quiet) {
   const auto start = Clock::now();
-  const SeriesRows rows = build_series(
-      eps, enc, s.cim.series_stride,
-      choose_val_episodes(static_cast<int>(eps.episodes.size()), s.train.val_fraction, s.train.seed));
+  std::vector<int> val =
+      choose_val_episodes(static_cast<int>(eps.episodes.size()), s.train.val_fraction, s.train.seed);
+  std::sort(val.begin(), val.end());
+  const SeriesRows rows = build_series(eps, enc, s.cim.series_stride, val);
+  // Which latents are active, on the predictor's training episodes only.
+  const std::vector<double> kl = mean_kl(enc, val);
+  std::vector<bool> active(kl.size());
+  for (size_t k = 0; k < kl.size(); ++k) active[k] = kl[k] > kActiveKlNats;
+  const std::vector<bool> eligible = s.cim.candidates == "active" ? active : std::vector<bool>{};
   if (!run.done("series")) {
     write_file_atomic(run.out + "/" + kCimSeriesCsv, rows.csv);
     run.commit("series", {{"rows", static_cast<long>(rows.rows.size())}, {"stride", s.cim.series_stride}});
   }
-  const CauseSelection sel = select_causes(rows.speed, rows.latents, s.cim, method == "cim-mlp");
-  const json c = causes_json(method, s.cim, sel, rows, eps);
+  const CauseSelection sel =
+      select_causes(rows.speed, rows.latents, s.cim, method == "cim-mlp", eligible);
+  const json c = causes_json(method, s.cim, sel, rows, eps, kl, eligible);
   write_file_atomic(run.out + "/" + kCimCausesJson, c.dump(2) + "\n");
   const bool by_share = sel.rule == "partial_r2";
   const std::string rule =
@@ -665,12 +701,18 @@ void causes_stage(const Settings& s, const std::string& method, const EpisodeSet
     std::fprintf(stderr, "warning: no latent Granger-causes the speed by the %s rule; the speed "
                          "predictor uses the best-ranked latent z%d alone\n",
                  rule.c_str(), sel.ranked[0]);
+  const long n_active = std::count(active.begin(), active.end(), true);
   say(quiet, "  causes: " + std::to_string(sel.significant) + " of " +
-                 std::to_string(s.vae.latents) + " latents pass (" + rule + ", " +
+                 (s.cim.candidates == "active"
+                      ? std::to_string(n_active) + " active (of " + std::to_string(s.vae.latents) + ")"
+                      : std::to_string(s.vae.latents)) +
+                 " latents pass (" + rule + ", " +
                  std::to_string(s.cim.lags) + " lags, " + std::to_string(sel.rows) +
                  " rows); picked" + list +
                  (method == "cim-mlp" ? "; cim-mlp uses all latents" : ""));
   run.commit("causes", {{"significant", sel.significant},
+                        {"candidates", s.cim.candidates},
+                        {"active_latents", n_active},
                         {"ranked", sel.ranked},
                         {"selected_count", static_cast<int>(sel.selected.size())},
                         {"fallback", sel.fallback},

@@ -59,7 +59,8 @@ constexpr uint64_t kShuffleStream = 0x5f1e;
 bool may_differ(const std::string& table, const std::string& key) {
   if (table == "dim")  // the planner's settings: used by the agents only
     return key == "plan_iterations" || key == "plan_lr" || key == "goal_distance" ||
-           key == "goal_weight" || key == "replan_steps" || key == "aggregation";
+           key == "goal_weight" || key == "goal" || key == "plan_speed" ||
+           key == "replan_steps" || key == "aggregation";
   return table == "train" && (key == "out" || key == "threads" || key == "device");
 }
 

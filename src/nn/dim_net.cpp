@@ -173,8 +173,11 @@ DimPlan plan_trajectory(const DimEnsemble& ensemble, const DimCondition& c,
   // Evaluates J at z; keeps z as the plan when it is the best so far.
   auto objective = [&](bool first) {
     torch::Tensor log_q = ensemble.log_probs(c, z).select(1, 0);  // K
-    torch::Tensor j = aggregate_log_q(log_q.unsqueeze(1), o.aggregation).squeeze(0) -
-                      o.goal_weight * (z.select(0, 0).select(0, H - 1) - g).square().sum();
+    const torch::Tensor last = z.select(0, 0).select(0, H - 1);
+    const torch::Tensor off_goal = o.segment_goal ? squared_distance_to_segment(last, g)
+                                                  : (last - g).square().sum();
+    torch::Tensor j =
+        aggregate_log_q(log_q.unsqueeze(1), o.aggregation).squeeze(0) - o.goal_weight * off_goal;
     const double jv = j.item<double>();
     if (first) {
       plan.objective_before = jv;
@@ -203,9 +206,20 @@ DimPlan plan_trajectory(const DimEnsemble& ensemble, const DimCondition& c,
   return plan;
 }
 
-double implied_speed(const torch::Tensor& z, int waypoint_step, double dt) {
-  const double d = z.detach().select(0, 0).norm().item<double>();
-  return std::max(0.0, d / (waypoint_step * dt));
+double implied_speed(const torch::Tensor& z, int waypoint_step, double dt, bool over_horizon) {
+  const torch::Tensor w = z.detach().to(torch::kFloat64);
+  if (!over_horizon) return std::max(0.0, w.select(0, 0).norm().item<double>() / (waypoint_step * dt));
+  const torch::Tensor pts = torch::cat({torch::zeros({1, 2}, w.options()), w}, 0);
+  const double length = (pts.narrow(0, 1, w.size(0)) - pts.narrow(0, 0, w.size(0)))
+                            .norm(2, {1}).sum().item<double>();
+  return std::max(0.0, length / (static_cast<double>(w.size(0)) * waypoint_step * dt));
+}
+
+torch::Tensor squared_distance_to_segment(const torch::Tensor& p, const torch::Tensor& g) {
+  const torch::Tensor gg = g.square().sum();
+  if (gg.item<double>() <= 0) return p.square().sum();  // a degenerate segment: the point 0
+  const torch::Tensor t = ((p * g).sum() / gg).clamp(0.0, 1.0);
+  return (p - t * g).square().sum();
 }
 
 }  // namespace cd

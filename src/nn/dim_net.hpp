@@ -132,6 +132,7 @@ struct DimPlanOptions {
   double lr = 0.2;             // Adam step (m)
   double goal_weight = 0.02;   // per m^2
   std::string aggregation = "worst";
+  bool segment_goal = false;   // the goal term on the segment [0, goal] instead of the point
 };
 
 struct DimPlan {
@@ -143,14 +144,20 @@ struct DimPlan {
   std::vector<double> log_q_after;   // per member, at z
 };
 
-// Maximises J(z) = agg_k log q_k(z | o) - goal_weight |z_H - goal|^2 by Adam from z0 (H x 2;
+// Maximises J(z) = agg_k log q_k(z | o) - goal_weight |z_H - goal|^2 (segment_goal: the
+// squared distance of z_H from the segment [0, goal]) by Adam from z0 (H x 2;
 // undefined: the mean rollout of member 0). c: the ensemble's condition for one observation;
 // goal: 2 values (m, ego frame).
 DimPlan plan_trajectory(const DimEnsemble& ensemble, const DimCondition& c,
                         const torch::Tensor& goal, const DimPlanOptions& options,
                         torch::Tensor z0 = {});
 
-// The speed a plan implies: |z_1| / (waypoint_step * dt), m/s, never negative.
-double implied_speed(const torch::Tensor& z, int waypoint_step, double dt);
+// The speed a plan implies, m/s, never negative: |z_1| / (waypoint_step * dt), or with
+// over_horizon the length of the polyline 0, z_1..z_H / (H * waypoint_step * dt).
+double implied_speed(const torch::Tensor& z, int waypoint_step, double dt,
+                     bool over_horizon = false);
+
+// The squared distance of point p (2) from the segment [0, g] (differentiable in p).
+torch::Tensor squared_distance_to_segment(const torch::Tensor& p, const torch::Tensor& g);
 
 }  // namespace cd

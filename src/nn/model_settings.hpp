@@ -47,7 +47,14 @@ struct DimSettings {
   int replan_steps = 2;     // the agent plans every this many simulation steps
   double plan_lr = 0.2;     // m per step (Adam)
   double goal_distance = 20;  // m along the route: the goal the plan is pulled toward
-  double goal_weight = 0.02;  // weight of -|last waypoint - goal|^2 (per m^2) in the objective
+  double goal_weight = 0.02;  // weight of the goal term (per m^2) in the objective
+  // The goal term: "point" -goal_weight |z_H - g|^2 (a Gaussian goal at the route point g);
+  // "segment" -goal_weight d(z_H, [0, g])^2 (DIM's line-segment goal: a Gaussian around the
+  // straight line from the ego to g, flat along it, so it steers without asking for speed).
+  std::string goal = "point";
+  // The target speed a plan implies: "first" |z_1| over its time; "horizon" the length of the
+  // polyline 0, z_1..z_H over the horizon's time (the plan's mean speed).
+  std::string plan_speed = "first";
   int ensemble = 3;           // rip: DIMs trained on bootstrap resamples of the episodes
   int patience = 0;  // a member stops after this many epochs without a better validation
                      // NLL (train.epochs at most); 0: every epoch

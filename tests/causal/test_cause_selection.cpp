@@ -160,6 +160,36 @@ TEST(CimSelection, NothingSignificantFallsBackToTheSmallestP) {
   EXPECT_THROW(select_causes(y, latents, settings("holm"), false), ConfigError);
 }
 
+TEST(CimSelection, OnlyEligibleLatentsArePickedAllAreTested) {
+  // Two drivers (1 strong, 5 weaker) among 8 latents: with 1 ineligible, 5 is picked alone;
+  // the tests of every latent are still run and recorded; the fallback too stays eligible.
+  Rng r(7);
+  std::vector<Series> latents;
+  for (int i = 0; i < 8; ++i) latents.push_back(ar_series(r, 3, 200));
+  Series y = speed_from({latents[1], latents[5]}, {2.0, 1.0}, r);
+  CauseSelection both = select_causes(y, latents, settings("bonferroni"), false);
+  EXPECT_EQ(both.selected, (std::vector<int>{1, 5}));
+  std::vector<bool> eligible(8, true);
+  eligible[1] = false;
+  CauseSelection sel = select_causes(y, latents, settings("bonferroni"), false, eligible);
+  EXPECT_EQ(sel.selected, std::vector<int>{5});
+  EXPECT_EQ(sel.significant, 1);
+  EXPECT_FALSE(sel.tests[1].significant);
+  EXPECT_EQ(sel.tests[1].test.p_value, both.tests[1].test.p_value);
+  // Nothing passes among the eligible: the fallback is the best eligible one, never latent 1.
+  std::vector<bool> only_noise(8, true);
+  only_noise[1] = only_noise[5] = false;
+  CauseSelection fb = select_causes(y, latents, settings("bonferroni", 1e-300), false, only_noise);
+  ASSERT_TRUE(fb.fallback);
+  ASSERT_EQ(fb.ranked.size(), 1u);
+  EXPECT_NE(fb.ranked[0], 1);
+  EXPECT_NE(fb.ranked[0], 5);
+  EXPECT_THROW(select_causes(y, latents, settings("bonferroni"), false, std::vector<bool>(8, false)),
+               DataError);
+  EXPECT_THROW(select_causes(y, latents, settings("bonferroni"), false, std::vector<bool>(3, true)),
+               Error);
+}
+
 // The situation of the driving data: 20k autocorrelated rows, a real driver, and a decoy that
 // carries a trace of the driver under a slow AR(0.99) wander of its own. The decoy's lags do
 // predict the speed a little (a p-value test at this row count calls that significant), but

@@ -173,6 +173,14 @@ TEST(CimCli, PipelineWritesEveryStageAndGrangerReproducesTheTests) {
     EXPECT_EQ(l["significant"].get<bool>(),
               l["partial_r2"].get<double>() >= causes["min_partial_r2"].get<double>());
   ASSERT_EQ(causes["latents"].size(), 8u);
+  // Every latent's mean KL on the training episodes; the active ones are those above 0.01.
+  EXPECT_EQ(causes["candidates"], "all");
+  std::vector<int> active_ones;
+  for (const auto& l : causes["latents"])
+    if (l["kl"].get<double>() > 0.01) active_ones.push_back(l["index"]);
+  EXPECT_EQ(causes["active_latents"].get<std::vector<int>>(), active_ones);
+  for (const auto& p : causes["rules"]["bivariate"]["picked"])
+    EXPECT_EQ(p["active"].get<bool>(), causes["latents"][p["index"].get<int>()]["kl"].get<double>() > 0.01);
   const auto selected = causes["selected"].get<std::vector<int>>();
   ASSERT_GE(selected.size(), 1u);
   EXPECT_LE(selected.size(), 2u);  // max_causes

@@ -55,8 +55,34 @@ TEST_F(DimPlannerTest, PlanningRaisesTheLikelihoodAndFollowsTheGoal) {
   EXPECT_LT(after, before - 0.2);
   EXPECT_GT(q.z[3][0].item<double>(), mean[3][0].item<double>());
   // Faster plan, faster implied speed; |z_1| / (5 * 0.1 s).
-  EXPECT_NEAR(implied_speed(q.z, 5, 0.1), q.z[0].norm().item<double>() / 0.5, 1e-9);
+  EXPECT_NEAR(implied_speed(q.z, 5, 0.1), q.z[0].norm().item<double>() / 0.5, 1e-6);
   EXPECT_GE(implied_speed(q.z, 5, 0.1), implied_speed(mean, 5, 0.1));
+  // The segment goal [0, goal] pulls the last waypoint towards the line from the ego to a goal
+  // off to the side.
+  torch::Tensor side = torch::tensor({60.0f, 30.0f});
+  DimPlanOptions ps = pg;
+  ps.segment_goal = true;
+  ps.goal_weight = 0.5;
+  DimPlan sg = plan_trajectory(ens, c, side, ps);
+  const double off_before = squared_distance_to_segment(mean[3].to(torch::kFloat64), side.to(torch::kFloat64)).item<double>();
+  const double off_after = squared_distance_to_segment(sg.z[3].to(torch::kFloat64), side.to(torch::kFloat64)).item<double>();
+  EXPECT_LT(off_after, off_before);
+  EXPECT_GE(sg.objective_after, sg.objective_before);
+}
+
+TEST(DimPlanGeometry, SegmentDistanceAndTheHorizonSpeed) {
+  const torch::Tensor g = torch::tensor({10.0, 0.0}, torch::kFloat64);
+  // Beside the segment: the perpendicular; before 0 or past g: the distance to that end.
+  EXPECT_NEAR(squared_distance_to_segment(torch::tensor({4.0, 3.0}, torch::kFloat64), g).item<double>(), 9.0, 1e-12);
+  EXPECT_NEAR(squared_distance_to_segment(torch::tensor({-3.0, 4.0}, torch::kFloat64), g).item<double>(), 25.0, 1e-12);
+  EXPECT_NEAR(squared_distance_to_segment(torch::tensor({13.0, 4.0}, torch::kFloat64), g).item<double>(), 25.0, 1e-12);
+  EXPECT_NEAR(squared_distance_to_segment(torch::tensor({1.0, 1.0}, torch::kFloat64),
+                                          torch::zeros({2}, torch::kFloat64)).item<double>(), 2.0, 1e-12);
+  // A plan (3, 4), (3, 4), (6, 8), (6, 8) over 4 x 0.5 s: first leg 5 m in 0.5 s = 10 m/s;
+  // the polyline is 5 + 0 + 5 + 0 = 10 m over 2 s = 5 m/s.
+  const torch::Tensor z = torch::tensor({3.0, 4.0, 3.0, 4.0, 6.0, 8.0, 6.0, 8.0}).reshape({4, 2});
+  EXPECT_NEAR(implied_speed(z, 5, 0.1), 10.0, 1e-6);
+  EXPECT_NEAR(implied_speed(z, 5, 0.1, true), 5.0, 1e-6);
 }
 
 TEST_F(DimPlannerTest, RipWorstCaseIsTheMinimumOfItsMembers) {
