@@ -12,7 +12,8 @@ void print_train_summary(const TrainSummary& s) {
   if (s.resumed_from > 0) std::printf(" (%d were done before this run)", s.resumed_from);
   std::printf("\n  samples: %ld train (%d episodes), %ld validation (%d episodes)\n",
               s.train_samples, s.train_episodes, s.val_samples, s.val_episodes);
-  std::printf("  best epoch %d, %s loss %.5f -> %s/%s\n", s.best_epoch,
+  std::printf("  %s %d, %s loss %.5f -> %s/%s\n", s.last_kept ? "kept the last epoch" : "best epoch",
+              s.best_epoch,
               s.has_validation ? "validation" : "training", s.best_loss, s.out_dir.c_str(),
               s.weights_file.empty() ? kBestFile : s.weights_file.c_str());
   if (s.samples_per_s > 0)

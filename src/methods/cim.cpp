@@ -593,7 +593,9 @@ json train_predictor(const Settings& s, const std::string& method, const Episode
   plan.shuffle_seed = s.train.seed ^ kPredOrderStream;
   plan.progress = progress ? &*progress : nullptr;
   plan.note = [epochs](int epoch, double v) { return epoch_note(epoch, epochs, "loss", v, 4); };
+  double last_selection = 0;  // the kept weights' loss when they are the last (few-shot)
   const LoopTotals totals = train_epochs(objective, opt, plan, state, [&](const EpochResult& r) {
+    last_selection = r.selection();
     json m = {{"epoch", r.epoch}, {"train_loss", r.train_loss}};
     if (r.val_loss) m["val_loss"] = *r.val_loss;
     m["seconds"] = r.seconds_since_start();
@@ -612,6 +614,7 @@ json train_predictor(const Settings& s, const std::string& method, const Episode
           {"steps", steps_per_epoch * epochs},
           {"labels", static_cast<long>(train.size() + val.size())},
           {"kept_epoch", fewshot ? epochs : state.best_epoch},
+          {"kept_loss", fewshot ? last_selection : state.best_loss},
           {"best_epoch", state.best_epoch},
           {"best_loss", state.best_loss},
           {"loss", s.train.loss},
@@ -896,9 +899,13 @@ TrainSummary train_cim(const Settings& settings_in, const TrainRequest& req) {
   sum.samples_per_s = samples_per_s;
   if (predictor_done_before) sum.resumed_from = s.cim.epochs;
   sum.epochs_done = pf.at("epochs").get<int>();
-  sum.best_epoch = pf.at("best_epoch").get<int>();
-  sum.best_loss = pf.at("best_loss").get<double>();
-  say(req.quiet, "  predictor: " + std::to_string(selected.size()) + " input variable(s), best epoch " +
+  // The weights kept: the best validation epoch, or a few-shot run's last one.
+  const bool last_kept = pf.value("fewshot", false);
+  sum.last_kept = last_kept;
+  sum.best_epoch = pf.value("kept_epoch", pf.at("best_epoch").get<int>());
+  sum.best_loss = pf.value("kept_loss", pf.at("best_loss").get<double>());
+  say(req.quiet, "  predictor: " + std::to_string(selected.size()) + " input variable(s), " +
+                     (last_kept ? "kept the last epoch " : "best epoch ") +
                      std::to_string(sum.best_epoch) + ", " + (sum.has_validation ? "validation" : "training") +
                      " " + s.train.loss + " loss " + fmt("%.4f", sum.best_loss) + " m/s -> " + out +
                      "/" + kCimPredictorFile);

@@ -22,6 +22,7 @@ struct TrainSummary {
   int resumed_from = 0;      // epochs already done when this run started
   int best_epoch = 0;
   double best_loss = 0;      // validation loss of best_epoch (training loss without validation)
+  bool last_kept = false;    // the weights kept are the last epoch's (few-shot), not the best's
   bool has_validation = false;
   long train_samples = 0, val_samples = 0;
   int train_episodes = 0, val_episodes = 0;

@@ -288,6 +288,10 @@ TEST(CimCli, FewShotReusesCausesAndTrainsOnMaxSamples) {
   EXPECT_EQ(pred["val_episodes"], 0);
   EXPECT_EQ(pred["steps"], 6);
   EXPECT_EQ(pred["kept_epoch"], 3);
+  // The summary names the weights it kept (the last epoch's) and their loss, the last line's.
+  EXPECT_NE(r.out.find("kept the last epoch 3, training l1 loss"), std::string::npos) << r.out;
+  EXPECT_EQ(pred["kept_loss"],
+            json::parse(test::split_lines(test::read_text(shot + "/predictor_metrics.jsonl")).back())["train_loss"]);
   EXPECT_EQ(test::read_text(shot + "/vae.pt"), test::read_text(f.run + "/vae.pt"));
   EXPECT_NE(test::read_text(shot + "/predictor.pt"), test::read_text(f.run + "/predictor.pt"));
   json a = read_json(f.run + "/causes.json"), b = read_json(shot + "/causes.json");
