@@ -375,7 +375,7 @@ json causes_json(const std::string& method, const CimSettings& cim, const CauseS
   json j;
   std::vector<int> active;
   for (size_t k = 0; k < kl.size(); ++k)
-    if (kl[k] > kActiveKlNats) active.push_back(static_cast<int>(k));
+    if (is_active_latent(kl[k])) active.push_back(static_cast<int>(k));
   j["target"] = "speed";
   j["method"] = method;
   j["selection"] = sel.rule;
@@ -463,7 +463,7 @@ json causes_json(const std::string& method, const CimSettings& cim, const CauseS
       picked.push_back({{"index", i},
                         {"strongest_cause", cause},
                         {"r", top},
-                        {"active", kl[static_cast<size_t>(i)] > kActiveKlNats}});
+                        {"active", is_active_latent(kl[static_cast<size_t>(i)])}});
     }
     rules[rule] = {{"passing", other.significant},
                    {"fallback", other.fallback},
@@ -681,7 +681,7 @@ void causes_stage(const Settings& s, const std::string& method, const EpisodeSet
   // Which latents are active, on the predictor's training episodes only.
   const std::vector<double> kl = mean_kl(enc, val);
   std::vector<bool> active(kl.size());
-  for (size_t k = 0; k < kl.size(); ++k) active[k] = kl[k] > kActiveKlNats;
+  for (size_t k = 0; k < kl.size(); ++k) active[k] = is_active_latent(kl[k]);
   const std::vector<bool> eligible = s.cim.candidates == "active" ? active : std::vector<bool>{};
   if (!run.done("series")) {
     write_file_atomic(run.out + "/" + kCimSeriesCsv, rows.csv);

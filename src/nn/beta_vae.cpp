@@ -58,7 +58,7 @@ torch::Tensor kl_per_latent(const torch::Tensor& mu, const torch::Tensor& logvar
 
 int active_latents(const std::vector<double>& mean_kl) {
   return static_cast<int>(
-      std::count_if(mean_kl.begin(), mean_kl.end(), [](double k) { return k > kActiveKlNats; }));
+      std::count_if(mean_kl.begin(), mean_kl.end(), is_active_latent));
 }
 
 VaeLoss vae_loss(const torch::Tensor& logits, const torch::Tensor& target, const torch::Tensor& mu,

@@ -56,6 +56,7 @@ torch::Tensor kl_per_latent(const torch::Tensor& mu, const torch::Tensor& logvar
 // A latent is active when its KL, averaged over the data, exceeds this many nats: the others
 // carry (almost) no information about the image (the usual count for posterior collapse).
 inline constexpr double kActiveKlNats = 0.01;
+inline bool is_active_latent(double mean_kl) { return mean_kl > kActiveKlNats; }
 // How many of the latents' mean KLs exceed kActiveKlNats.
 int active_latents(const std::vector<double>& mean_kl);
 
