@@ -207,18 +207,17 @@ DimPlan plan_trajectory(const DimEnsemble& ensemble, const DimCondition& c,
 }
 
 double implied_speed(const torch::Tensor& z, int waypoint_step, double dt, bool over_horizon) {
+  // The plan's legs 0 -> z_1 -> ... -> z_H; the first one alone, or all of them.
   const torch::Tensor w = z.detach().to(torch::kFloat64);
-  if (!over_horizon) return std::max(0.0, w.select(0, 0).norm().item<double>() / (waypoint_step * dt));
-  const torch::Tensor pts = torch::cat({torch::zeros({1, 2}, w.options()), w}, 0);
-  const double length = (pts.narrow(0, 1, w.size(0)) - pts.narrow(0, 0, w.size(0)))
-                            .norm(2, {1}).sum().item<double>();
-  return std::max(0.0, length / (static_cast<double>(w.size(0)) * waypoint_step * dt));
+  const int64_t legs = over_horizon ? w.size(0) : 1;
+  const torch::Tensor pts = torch::cat({torch::zeros({1, 2}, w.options()), w.narrow(0, 0, legs)}, 0);
+  const double length = pts.diff(1, 0).norm(2, {1}).sum().item<double>();
+  return std::max(0.0, length / (static_cast<double>(legs) * waypoint_step * dt));
 }
 
 torch::Tensor squared_distance_to_segment(const torch::Tensor& p, const torch::Tensor& g) {
-  const torch::Tensor gg = g.square().sum();
-  if (gg.item<double>() <= 0) return p.square().sum();  // a degenerate segment: the point 0
-  const torch::Tensor t = ((p * g).sum() / gg).clamp(0.0, 1.0);
+  // t = 0 for a degenerate segment (g = 0): the distance to the point 0.
+  const torch::Tensor t = ((p * g).sum() / g.square().sum().clamp_min(1e-12)).clamp(0.0, 1.0);
   return (p - t * g).square().sum();
 }
 
