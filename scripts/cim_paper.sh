@@ -45,17 +45,17 @@ train_all() {
   "$CD" collect --config "$CONFIG" --town town-c --episodes 20 --seed 300 --out "$DATA_C"
   for s in $SEEDS; do
     local T=$OUT/train/seed$s
-    "$CD" train --config "$CONFIG" --method cim --data "$DATA_A" --seed "$s" --out "$T/cim"
-    "$CD" train --config "$CONFIG" --method cim-mlp --data "$DATA_A" --seed "$s" \
-      --vae "$T/cim" --out "$T/cim-mlp"
-    "$CD" train --config "$CONFIG" --method cim-entangled --data "$DATA_A" --seed "$s" \
-      --out "$T/cim-entangled"
-    "$CD" train --config "$CONFIG" --method dim --data "$DATA_A" --seed "$s" --out "$T/dim"
-    "$CD" train --config "$CONFIG" --method rip --data "$DATA_A" --seed "$s" --out "$T/rip"
+    kept_train "$T/cim" --config "$CONFIG" --method cim --data "$DATA_A" --seed "$s"
+    kept_train "$T/cim-mlp" --config "$CONFIG" --method cim-mlp --data "$DATA_A" --seed "$s" \
+      --vae "$T/cim"
+    kept_train "$T/cim-entangled" --config "$CONFIG" --method cim-entangled --data "$DATA_A" \
+      --seed "$s"
+    kept_train "$T/dim" --config "$CONFIG" --method dim --data "$DATA_A" --seed "$s"
+    kept_train "$T/rip" --config "$CONFIG" --method rip --data "$DATA_A" --seed "$s"
     # Table 3: the town-a speed predictors fine-tuned on 100 town-c samples.
     for m in cim cim-mlp; do
-      "$CD" train --config "$CONFIG" --method "$m" --init "$T/$m" --data "$DATA_C" \
-        --max-samples 100 --seed "$s" --out "$T/$m-fewshot"
+      kept_train "$T/$m-fewshot" --config "$CONFIG" --method "$m" --init "$T/$m" --data "$DATA_C" \
+        --max-samples 100 --seed "$s"
     done
   done
 }
@@ -74,9 +74,9 @@ train_fair() {
   dim_vehicles=$(variant_config dim-vehicles dim 'view = "vehicles"')
   for s in $SEEDS; do
     local T=$OUT/train/seed$s
-    "$CD" train --config "$lights" --method cim --data "$DATA_A" --seed "$s" --out "$T/cim-lights"
-    "$CD" train --config "$dim_vehicles" --method dim --data "$DATA_A" --seed "$s" \
-      --out "$T/dim-vehicles"
+    kept_train "$T/cim-lights" --config "$lights" --method cim --data "$DATA_A" --seed "$s"
+    kept_train "$T/dim-vehicles" --config "$dim_vehicles" --method dim --data "$DATA_A" \
+      --seed "$s"
   done
 }
 

@@ -5,8 +5,8 @@
 # Every step resumes: eval skips the episodes its output folder already holds.
 #
 # Kept results. $OUT (runs/..., ignored by git) holds data, checkpoints and evaluations, and is
-# lost with the checkout. Every finished evaluation's results.json, probe report and table is
-# also copied to $KEEP (default results/<name of $OUT>, committed), at the same path relative to
+# lost with the checkout. Every finished evaluation's results.json, probe report and table (and,
+# for the scripts that train through kept_train, every finished run) is also copied to $KEEP (default results/<name of $OUT>, committed), at the same path relative to
 # $OUT. A result found in $KEEP is used as it is: its evaluation is not run again and its
 # checkpoint is not needed, so a table resumes in a fresh checkout from what earlier sessions
 # measured. Delete a kept file (or the folder) to measure it again, e.g. after a code change.
@@ -19,6 +19,35 @@ keep_file() {
   local rel=${1#"$OUT"/}
   mkdir -p "$(dirname "$KEEP/$rel")"
   cp "$1" "$KEEP/$rel.tmp" && mv "$KEEP/$rel.tmp" "$KEEP/$rel"
+}
+
+# restore_run DIR: copies the run kept for DIR back into DIR, unless DIR holds a run already.
+restore_run() {
+  local dir=$1 kept=$KEEP/${1#"$OUT"/}
+  if [[ -f $kept/run.json && ! -f $dir/run.json ]]; then
+    mkdir -p "$dir"
+    cp "$kept"/* "$dir"/
+  fi
+}
+
+# kept_train DIR ARGS...: `causaldrive train ARGS --out DIR`, the finished run kept in $KEEP
+# (weights and records; not cim's Granger series series.csv, 40 MB, which only `causaldrive
+# granger` reads). A kept run is used as it is, like a kept evaluation: it is copied back into
+# DIR and not trained again, so a fresh checkout evaluates the same weights (on another CPU,
+# retraining gives other floats: libtorch's kernels depend on the vector units). Identical files
+# (the VAE that cim-mlp and the few-shot runs copy) are one object in git.
+kept_train() {
+  local dir=$1; shift
+  local file
+  if [[ -f $KEEP/${dir#"$OUT"/}/run.json ]]; then
+    restore_run "$dir"
+    return 0
+  fi
+  "$CD" train "$@" --out "$dir"
+  for file in "$dir"/*; do
+    [[ -f $file && $(basename "$file") != series.csv ]] && keep_file "$file"
+  done
+  return 0
 }
 
 # kept_eval DIR ARGS...: sets KEPT to the folder whose results.json the tables read: $KEEP's copy
@@ -89,7 +118,11 @@ eval_agents() {
       fi
       for s in $SEEDS; do
         local path=()
-        [[ $kind == cim* && -n ${CIM_PATH:-} ]] && path=(--cim-path "$OUT/train/seed$s/$CIM_PATH")
+        restore_run "$OUT/train/seed$s/$label"
+        if [[ $kind == cim* && -n ${CIM_PATH:-} ]]; then
+          restore_run "$OUT/train/seed$s/$CIM_PATH"
+          path=(--cim-path "$OUT/train/seed$s/$CIM_PATH")
+        fi
         kept_eval "$OUT/eval/$label/seed$s/$name$tag" --config "$CONFIG" --agent "$kind" \
           --checkpoint "$OUT/train/seed$s/$label" --label "$label" --suite "$suite" \
           --trials "$TRIALS" --workers "$WORKERS" --sensor "$sensor" --quiet "${path[@]}"
