@@ -21,10 +21,10 @@ keep_file() {
   cp "$1" "$KEEP/$rel.tmp" && mv "$KEEP/$rel.tmp" "$KEEP/$rel"
 }
 
-# restore_run DIR: copies the run kept for DIR back into DIR, unless DIR holds a run already.
+# restore_run DIR: copies the run kept for DIR back into DIR, unless DIR exists already.
 restore_run() {
   local dir=$1 kept=$KEEP/${1#"$OUT"/}
-  if [[ -f $kept/run.json && ! -f $dir/run.json ]]; then
+  if [[ -d $kept && ! -d $dir ]]; then
     mkdir -p "$dir"
     cp "$kept"/* "$dir"/
   fi
@@ -35,19 +35,22 @@ restore_run() {
 # granger` reads). A kept run is used as it is, like a kept evaluation: it is copied back into
 # DIR and not trained again, so a fresh checkout evaluates the same weights (on another CPU,
 # retraining gives other floats: libtorch's kernels depend on the vector units). Identical files
-# (the VAE that cim-mlp and the few-shot runs copy) are one object in git.
+# (the VAE that cim-mlp and the few-shot runs copy) are one object in git. The kept folder
+# appears whole or not at all (written as KEPT.tmp, then renamed).
 kept_train() {
   local dir=$1; shift
-  local file
-  if [[ -f $KEEP/${dir#"$OUT"/}/run.json ]]; then
+  local kept=$KEEP/${dir#"$OUT"/} file
+  if [[ -d $kept ]]; then
     restore_run "$dir"
     return 0
   fi
   "$CD" train "$@" --out "$dir"
+  rm -rf "$kept.tmp"
+  mkdir -p "$kept.tmp"
   for file in "$dir"/*; do
-    [[ -f $file && $(basename "$file") != series.csv ]] && keep_file "$file"
+    [[ -f $file && $(basename "$file") != series.csv ]] && cp "$file" "$kept.tmp/"
   done
-  return 0
+  mv "$kept.tmp" "$kept"
 }
 
 # kept_eval DIR ARGS...: sets KEPT to the folder whose results.json the tables read: $KEEP's copy

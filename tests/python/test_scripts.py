@@ -1,5 +1,6 @@
 """The reproduction scripts' command line (scripts/*_paper.sh, run_steps in paper_lib.sh):
-several steps run in order, an unknown step is refused before any step runs."""
+several steps run in order, an unknown step is refused before any step runs; kept_train keeps a
+finished run and copies a kept one back without training."""
 import os
 import subprocess
 import unittest
@@ -56,6 +57,50 @@ class PaperScriptsTest(TempDirCase):
                             EXPERTS=experts)
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
         self.assertEqual(r.stderr.count("reacher.pt: kept"), 2, r.stderr)
+
+
+class KeptTrainTest(TempDirCase):
+    """paper_lib.sh's kept_train with a stand-in for the binary that records each call and writes
+    a run (run.json, weights, series.csv) into its --out folder."""
+
+    def kept_train(self, label):
+        fake = os.path.join(self.dir, "fake_cd")
+        with open(fake, "w") as f:
+            f.write('#!/usr/bin/env bash\necho "$*" >> "%s/calls"\n'
+                    'while [[ $1 != --out ]]; do shift; done\nmkdir -p "$2"\n'
+                    'echo "{}" > "$2/run.json"; echo w > "$2/vae.pt"; echo s > "$2/series.csv"\n'
+                    % self.dir)
+        os.chmod(fake, 0o755)
+        script = ('source "%s/scripts/paper_lib.sh"\n'
+                  'kept_train "$OUT/train/seed0/%s" --method cim --seed 0\n') % (SOURCE, label)
+        env = dict(os.environ, CD=fake, OUT=os.path.join(self.dir, "out"),
+                   KEEP=os.path.join(self.dir, "keep"))
+        r = subprocess.run(["bash", "-c", script], env=env, capture_output=True, text=True,
+                           timeout=60)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        calls = os.path.join(self.dir, "calls")
+        return open(calls).read().splitlines() if os.path.exists(calls) else []
+
+    def test_a_new_run_is_trained_and_kept_without_its_series(self):
+        calls = self.kept_train("cim")
+        self.assertEqual(calls, ["train --method cim --seed 0 --out %s/out/train/seed0/cim"
+                                 % self.dir])
+        kept = os.path.join(self.dir, "keep", "train", "seed0", "cim")
+        self.assertEqual(sorted(os.listdir(os.path.dirname(kept))), ["cim"])  # no cim.tmp left
+        self.assertEqual(sorted(os.listdir(kept)), ["run.json", "vae.pt"])
+        self.assertTrue(os.path.exists(os.path.join(self.dir, "out/train/seed0/cim/series.csv")))
+
+    def test_a_kept_run_is_copied_back_and_not_trained(self):
+        kept = os.path.join(self.dir, "keep", "train", "seed0", "dim")
+        os.makedirs(kept)
+        for name, text in (("dim.json", '{"kept": 1}'), ("member_0.pt", "weights")):
+            with open(os.path.join(kept, name), "w") as f:
+                f.write(text)
+        self.assertEqual(self.kept_train("dim"), [])
+        out = os.path.join(self.dir, "out", "train", "seed0", "dim")
+        self.assertEqual(sorted(os.listdir(out)), ["dim.json", "member_0.pt"])
+        with open(os.path.join(out, "member_0.pt")) as f:
+            self.assertEqual(f.read(), "weights")
 
 
 if __name__ == "__main__":
