@@ -33,8 +33,8 @@ restore_run() {
 # kept_train DIR ARGS...: `causaldrive train ARGS --out DIR`, the finished run kept in $KEEP
 # (weights and records; not cim's Granger series series.csv, 40 MB, which only `causaldrive
 # granger` reads). A kept run is used as it is, like a kept evaluation: it is copied back into
-# DIR and not trained again, so a fresh checkout evaluates the same weights (on another CPU,
-# retraining gives other floats: libtorch's kernels depend on the vector units). Identical files
+# DIR and not trained again, so a fresh checkout evaluates the same weights (retraining on another
+# machine gives other floats: libtorch picks its kernels by CPU). Identical files
 # (the VAE that cim-mlp and the few-shot runs copy) are one object in git. The kept folder
 # appears whole or not at all (written as KEPT.tmp, then renamed).
 kept_train() {
