@@ -11,6 +11,7 @@
 # checkpoint is not needed, so a table resumes in a fresh checkout from what earlier sessions
 # measured. Delete a kept file (or the folder) to measure it again, e.g. after a code change.
 
+shopt -s inherit_errexit  # a failing command in $(...) fails the script, not only the subshell
 [[ -x $CD ]] || { echo "error: $CD not found; run 'make build' first (or set CD)" >&2; exit 1; }
 KEEP=${KEEP:-results/$(basename "$OUT")}
 
@@ -88,7 +89,7 @@ suite_of() {
     seed=$(( 5000 + $(cksum <<<"$name" | cut -d' ' -f1) % 1000 ))
     if [[ $kind == stopgo ]]; then
       "$CD" suite --name "$name-$TASKS" --town "$town" --traffic regular --tasks "$TASKS" \
-        --trials "$TRIALS" --seed "$seed" --scenarios red_light,leader --min-route 120 \
+        --trials "$TRIALS" --seed "$seed" --scenarios red_light leader --min-route 120 \
         --max-route 300 --out "$file" >&2
     else
       "$CD" suite --name "$name-$TASKS" --town "$town" --traffic "$kind" --tasks "$TASKS" \

@@ -1,6 +1,7 @@
 """The reproduction scripts' command line (scripts/*_paper.sh, run_steps in paper_lib.sh):
 several steps run in order, an unknown step is refused before any step runs; kept_train keeps a
-finished run and copies a kept one back without training."""
+finished run and copies a kept one back without training; suite_of generates suites of any size."""
+import json
 import os
 import subprocess
 import unittest
@@ -101,6 +102,37 @@ class KeptTrainTest(TempDirCase):
         self.assertEqual(sorted(os.listdir(out)), ["dim.json", "member_0.pt"])
         with open(os.path.join(out, "member_0.pt")) as f:
             self.assertEqual(f.read(), "weights")
+
+
+class SuiteOfTest(TempDirCase):
+    """paper_lib.sh's suite_of: a suite of $TASKS tasks generated from the name's fixed seed."""
+
+    def suite_of(self, name, tasks):
+        env = dict(os.environ, CD=os.path.abspath(BIN), OUT=os.path.join(self.dir, "out"),
+                   TASKS=str(tasks), TRIALS="2")
+        r = subprocess.run(["bash", "-c", 'source "%s/scripts/paper_lib.sh"; suite_of %s'
+                            % (SOURCE, name)], env=env, capture_output=True, text=True,
+                           timeout=120)
+        return r
+
+    def test_generated_suites_have_the_names_traffic_and_scenarios(self):
+        for name, traffic, scenarios in (("town-a-dense", "dense", {"route"}),
+                                         ("town-b-stopgo", "regular", {"red_light", "leader"})):
+            with self.subTest(suite=name):
+                r = self.suite_of(name, 4)
+                self.assertEqual(r.returncode, 0, r.stderr)
+                path = r.stdout.strip()
+                self.assertEqual(path, os.path.join(self.dir, "out", "suites", name + "-4.json"))
+                with open(path) as f:
+                    suite = json.load(f)
+                self.assertEqual((suite["town"], suite["traffic"], suite["trials"]),
+                                 (name.rsplit("-", 1)[0], traffic, 2))
+                self.assertEqual(len(suite["tasks"]), 4)
+                self.assertEqual({t["scenario"] for t in suite["tasks"]}, scenarios)
+
+    def test_the_built_in_suite_at_25_tasks(self):
+        r = self.suite_of("town-a-stopgo", 25)
+        self.assertEqual((r.returncode, r.stdout.strip()), (0, "town-a-stopgo"), r.stderr)
 
 
 if __name__ == "__main__":
