@@ -6,10 +6,10 @@
 #
 # Kept results. $OUT (runs/..., ignored by git) holds data, checkpoints and evaluations, and is
 # lost with the checkout. Every finished evaluation's results.json, probe report and table (and,
-# for the scripts that train through kept_train, every finished run) is also copied to $KEEP (default results/<name of $OUT>, committed), at the same path relative to
-# $OUT. A result found in $KEEP is used as it is: its evaluation is not run again and its
-# checkpoint is not needed, so a table resumes in a fresh checkout from what earlier sessions
-# measured. Delete a kept file (or the folder) to measure it again, e.g. after a code change.
+# for the scripts that train through kept_train, every finished run) is also copied to $KEEP
+# (default results/<name of $OUT>, committed), at the same path relative to $OUT. A result found
+# in $KEEP is used as it is: its evaluation is not run again and its checkpoint is not needed, so
+# a table resumes in a fresh checkout from what earlier sessions measured. Delete a kept file (or the folder) to measure it again, e.g. after a code change.
 
 shopt -s inherit_errexit  # a failing command in $(...) fails the script, not only the subshell
 [[ -x $CD ]] || { echo "error: $CD not found; run 'make build' first (or set CD)" >&2; exit 1; }
