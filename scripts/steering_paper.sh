@@ -18,7 +18,8 @@
 # Several steps run in order (`scripts/steering_paper.sh train table1 dense`);
 # an unknown step is refused before any of them runs.
 # Every step resumes (collect, train and eval skip what their folders hold) and finished
-# evaluations and tables are kept in results/steering (scripts/paper_lib.sh). The experiment
+# runs, evaluations and tables are kept in results/steering (scripts/paper_lib.sh), so a fresh
+# checkout evaluates the weights an earlier session trained. The experiment
 # configs are the papers' configs with [ego] lateral = "free" and a share of augmented frames
 # added ($OUT/configs). Knobs:
 #   CD       the causaldrive binary        (default: build/causaldrive)
@@ -118,12 +119,12 @@ train_step() {
   "$CD" collect --config "$res_cfg" --out "$OUT/data/town-a"
   for s in $SEEDS; do
     for m in cim dim rip; do
-      "$CD" train --config "$cim_cfg" --method "$m" --data "$OUT/data/town-a" --seed "$s" \
-        --out "$OUT/cim/train/seed$s/$m"
+      OUT=$OUT/cim KEEP=$KEEP/cim kept_train "$OUT/cim/train/seed$s/$m" --config "$cim_cfg" \
+        --method "$m" --data "$OUT/data/town-a" --seed "$s"
     done
     for m in $METHODS; do
-      "$CD" train --config "$res_cfg" --method "$m" --data "$OUT/data/town-a" --seed "$s" \
-        --out "$OUT/residual/train/seed$s/$m"
+      OUT=$OUT/residual KEEP=$KEEP/residual kept_train "$OUT/residual/train/seed$s/$m" \
+        --config "$res_cfg" --method "$m" --data "$OUT/data/town-a" --seed "$s"
     done
   done
 }
