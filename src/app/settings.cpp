@@ -110,6 +110,7 @@ void visit_settings(S& st, V&& v) {
   v.number("train", "lr_min", st.train.lr_min, 0, 1);
   v.integer("train", "seed", st.train.seed, 0, kMaxI64);
   v.integer("train", "threads", st.train.threads, 1, 256);
+  v.flag("train", "flush_denormals", st.train.flush_denormals);
   v.text("train", "device", st.train.device, {"cpu", "cuda", "auto"});
   v.integer("train", "max_samples", st.train.max_samples, 0, kMaxI64);
   v.integer("train", "epoch_samples", st.train.epoch_samples, 0, kMaxI64);

@@ -61,6 +61,9 @@ struct TrainSettings {
   double lr_min = 1e-6;
   uint64_t seed = 0;
   int threads = 2;               // torch intra-op threads
+  // CPU training: treat denormal floats (below ~1.2e-38) as zero in every training thread (x86
+  // FTZ/DAZ). Denormal operands make OpenBLAS's sgemm ~25x slower on this project's machines.
+  bool flush_denormals = false;
   std::string device = "cpu";    // cpu | cuda | auto
   long max_samples = 0;          // 0: every sample of the data folder
   // Samples per epoch (0: one pass over the training split): fewer take a fresh seeded subset

@@ -814,7 +814,7 @@ TrainSummary train_cim(const Settings& settings_in, const TrainRequest& req) {
     check_same_vae(*vae_run, s.vae, req.method, "--vae");
   }
 
-  const TrainingDevice dev = training_device(s.train.device, s.train.threads);
+  const TrainingDevice dev = training_device(s.train.device, s.train.threads, s.train.flush_denormals);
   const torch::Device& device = dev.device;
   const std::string& device_name = dev.name;
 

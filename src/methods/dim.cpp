@@ -238,7 +238,7 @@ TrainSummary train_dim(const Settings& settings_in, const TrainRequest& req) {
     refuse_other_run({previous->method, previous->settings, previous->data_dir},
                      {req.method, settings_json, data_dir}, out, {"dim", "train"}, may_differ);
 
-  const TrainingDevice dev = training_device(s.train.device, s.train.threads);
+  const TrainingDevice dev = training_device(s.train.device, s.train.threads, s.train.flush_denormals);
 
   const EpisodeSet eps = load_episode_set(req.data_dir);
   for (const auto& e : eps.episodes)

@@ -151,7 +151,7 @@ TrainSummary train_policy_family(const Settings& settings_in, const TrainRequest
     refuse_other_run({previous->method, previous->settings, previous->data_dir},
                      {req.method, settings_json, data_dir}, out, tables, may_differ);
 
-  const TrainingDevice dev = training_device(s.train.device, s.train.threads);
+  const TrainingDevice dev = training_device(s.train.device, s.train.threads, s.train.flush_denormals);
 
   DatasetOptions dopt;
   dopt.history = s.model.history;

@@ -57,9 +57,22 @@ std::string epoch_note(int epoch, int epochs, const char* what, double value, in
   return note;
 }
 
-TrainingDevice training_device(const std::string& wanted, int threads) {
+void set_flush_denormals(bool on) {
+  if (!at::globalContext().setFlushDenormal(on) && on)
+    throw ConfigError("train.flush_denormals: this CPU cannot flush denormal floats to zero");
+  // Each thread has its own float control register: one OpenMP region as wide as torch's team
+  // runs the setting on every one of its threads (libtorch's intra-op threads and OpenBLAS's are
+  // libgomp's team of this thread). This file is the one compiled with OpenMP (CMakeLists.txt):
+  // ATen's at::parallel_for, a header template, is serial in code built without it.
+  const int n = at::get_num_threads();
+#pragma omp parallel num_threads(n)
+  at::globalContext().setFlushDenormal(on);
+}
+
+TrainingDevice training_device(const std::string& wanted, int threads, bool flush_denormals) {
   const std::string name = resolve_device(wanted);
   torch::set_num_threads(threads);
+  set_flush_denormals(flush_denormals);
   return {name, torch::Device(name == "cuda" ? torch::kCUDA : torch::kCPU)};
 }
 

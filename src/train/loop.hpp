@@ -122,12 +122,17 @@ void set_learning_rate(torch::optim::Optimizer& opt, double lr);
 // "epoch 3/8 loss 0.1234": the progress note of a batch (`digits` after the point).
 std::string epoch_note(int epoch, int epochs, const char* what, double value, int digits);
 
-// Where a run trains: train.device resolved (train/request.hpp), and torch's threads set to
-// train.threads.
+// Where a run trains: train.device resolved (train/request.hpp), torch's threads set to
+// train.threads, and denormal floats flushed to zero or kept (train.flush_denormals) on this
+// thread and on every one of torch's intra-op threads.
 struct TrainingDevice {
   std::string name;  // cpu | cuda
   torch::Device device;
 };
-TrainingDevice training_device(const std::string& wanted, int threads);
+TrainingDevice training_device(const std::string& wanted, int threads, bool flush_denormals);
+
+// Sets the calling thread's and torch's intra-op threads' denormal mode (x86 FTZ/DAZ). Threads
+// started later by those threads inherit it. A ConfigError where the CPU cannot flush them.
+void set_flush_denormals(bool on);
 
 }  // namespace cd

@@ -139,5 +139,25 @@ TEST(TrainLoop, StopsOnceTheLossStopsFallingByTheMargin) {
   EXPECT_FALSE(t.stopped_early);  // the stall came at the last epoch anyway
 }
 
+// train.flush_denormals: 1e-20 * 1e-20 = 1e-40 is a denormal float. Flushed, every product is 0,
+// on the main thread and on torch's second intra-op thread alike (the element-wise product of a
+// large tensor is split between them, the matrix product runs in OpenBLAS's threads); kept, it
+// is not, and 512 of them add up to a normal float.
+TEST(TrainLoop, FlushDenormalsZeroesTinyProductsOnEveryThread) {
+  const int threads_before = at::get_num_threads();
+  const TrainingDevice dev = training_device("cpu", 2, true);
+  EXPECT_EQ(dev.name, "cpu");
+  const torch::Tensor a = torch::full({512, 512}, 1e-20f);
+  EXPECT_EQ(torch::count_nonzero(a * a).item<int64_t>(), 0);
+  EXPECT_EQ(torch::count_nonzero(torch::mm(a, a)).item<int64_t>(), 0);
+
+  training_device("cpu", 2, false);
+  EXPECT_EQ(torch::count_nonzero(a * a).item<int64_t>(), 512 * 512);
+  const torch::Tensor sums = torch::mm(a, a);
+  EXPECT_EQ(torch::count_nonzero(sums).item<int64_t>(), 512 * 512);
+  EXPECT_NEAR(sums[0][0].item<float>() / 5.12e-38f, 1.0, 1e-3);
+  torch::set_num_threads(threads_before);
+}
+
 }  // namespace
 }  // namespace cd
