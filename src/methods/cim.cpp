@@ -92,8 +92,8 @@ std::string fmt(const char* f, double v) {
 // Settings a rerun into the same folder must share: everything the stages read ([vae], [cim],
 // [bev] and these [train] keys).
 bool may_differ(const std::string& table, const std::string& key) {
-  return table == "train" &&
-         !(key == "seed" || key == "val_fraction" || key == "max_samples" || key == "loss");
+  return table == "train" && !(key == "seed" || key == "val_fraction" || key == "max_samples" ||
+                                key == "loss" || key == "flush_denormals");
 }
 
 void check_same_vae(const CimRunInfo& src, const VaeSettings& want, const std::string& method,

@@ -334,6 +334,11 @@ TEST(CimCli, VaeReuseAndFolderChecksGiveOneLineErrors) {
   test::write_text(other_cfg, "[vae]\nlatents = 4\nepochs = 1\nmax_frames = 100\n[train]\nthreads = 1\n");
   expect_one_line_error(test::run_cli(train_args(other_cfg, "cim", f.data, f.run)),
                         "other settings");
+  // Flushing denormals changes the trained bytes: a run trained without it is not resumed with it.
+  const std::string flush_cfg = f.dir / "flush.toml";
+  test::write_text(flush_cfg, tiny_toml("flush_denormals = true\n"));
+  expect_one_line_error(test::run_cli(train_args(flush_cfg, "cim", f.data, f.run)),
+                        "train.flush_denormals false -> true");
   expect_one_line_error(test::run_cli(train_args(f.config, "cim", f.data, f.dir / "y",
                                                  {"--vae", f.data})),
                         "not a cim run folder");
