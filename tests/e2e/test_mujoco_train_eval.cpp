@@ -207,7 +207,9 @@ TEST_F(MujocoTrainEval, DaggerAggregatesExpertLabelsFromTheEnv) {
       const std::vector<double> label = planner.act(state);
       for (size_t j = 0; j < A; ++j)
         ASSERT_NEAR(e.action[t * A + j], label[j], 1e-3) << f << " t " << t;
-      if (static_cast<int>(t) < prefill) EXPECT_EQ(e.noise[t], 0) << "the expert fills the history";
+      if (static_cast<int>(t) < prefill) {
+        EXPECT_EQ(e.noise[t], 0) << "the expert fills the history";
+      }
       policy_steps += e.noise[t];
     }
   }
