@@ -63,7 +63,7 @@ train_all() {
   done
 }
 
-# Table 2's own model (a beta-1 VAE, ~30 min a seed), trained by its step so that tables 1 and
+# Table 2's own model (a beta-1 VAE, 14-19 min a seed), trained by its step so that tables 1 and
 # 3 do not wait for it.
 train_entangled() {
   collect_a
