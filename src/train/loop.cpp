@@ -21,6 +21,18 @@ double seconds_since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
 }
 
+void set_flush_denormals(bool on) {
+  if (!at::globalContext().setFlushDenormal(on) && on)
+    throw ConfigError("train.flush_denormals: this CPU cannot flush denormal floats to zero");
+  // Each thread has its own float control register: one OpenMP region as wide as torch's team
+  // runs the setting on every one of its threads (libtorch's intra-op threads and OpenBLAS's are
+  // libgomp's team of this thread). This file is the one compiled with OpenMP (CMakeLists.txt):
+  // ATen's at::parallel_for, a header template, is serial in code built without it.
+  const int n = at::get_num_threads();
+#pragma omp parallel num_threads(n)
+  at::globalContext().setFlushDenormal(on);
+}
+
 }  // namespace
 
 double EpochResult::seconds_since_start() const { return seconds_since(started); }
@@ -55,18 +67,6 @@ std::string epoch_note(int epoch, int epochs, const char* what, double value, in
   char note[96];
   std::snprintf(note, sizeof note, "epoch %d/%d %s %.*f", epoch, epochs, what, digits, value);
   return note;
-}
-
-void set_flush_denormals(bool on) {
-  if (!at::globalContext().setFlushDenormal(on) && on)
-    throw ConfigError("train.flush_denormals: this CPU cannot flush denormal floats to zero");
-  // Each thread has its own float control register: one OpenMP region as wide as torch's team
-  // runs the setting on every one of its threads (libtorch's intra-op threads and OpenBLAS's are
-  // libgomp's team of this thread). This file is the one compiled with OpenMP (CMakeLists.txt):
-  // ATen's at::parallel_for, a header template, is serial in code built without it.
-  const int n = at::get_num_threads();
-#pragma omp parallel num_threads(n)
-  at::globalContext().setFlushDenormal(on);
 }
 
 TrainingDevice training_device(const std::string& wanted, int threads, bool flush_denormals) {

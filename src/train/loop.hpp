@@ -124,15 +124,12 @@ std::string epoch_note(int epoch, int epochs, const char* what, double value, in
 
 // Where a run trains: train.device resolved (train/request.hpp), torch's threads set to
 // train.threads, and denormal floats flushed to zero or kept (train.flush_denormals) on this
-// thread and on every one of torch's intra-op threads.
+// thread and on every one of torch's intra-op threads (threads they start later inherit it; a
+// ConfigError where the CPU cannot flush them).
 struct TrainingDevice {
   std::string name;  // cpu | cuda
   torch::Device device;
 };
 TrainingDevice training_device(const std::string& wanted, int threads, bool flush_denormals);
-
-// Sets the calling thread's and torch's intra-op threads' denormal mode (x86 FTZ/DAZ). Threads
-// started later by those threads inherit it. A ConfigError where the CPU cannot flush them.
-void set_flush_denormals(bool on);
 
 }  // namespace cd
