@@ -271,26 +271,36 @@ json train_vae(const Settings& s, const EpisodeSet& eps, const GreyView& view,
   LoopState state;
   state.lr = s.vae.lr;
   std::string metrics;
-  json last;
+  // The weights of the epoch with the lowest loss are the ones kept: a late spike of the loss
+  // (one seen: 55 -> 732 in the epoch that ended a run) must not replace a trained VAE.
+  json kept;
+  std::string kept_bytes;
   VaeObjective objective(eps, view, frames, vae, device, s.vae);
   const LoopTotals totals = train_epochs(objective, opt, plan, state, [&](const EpochResult& r) {
-    last = {{"epoch", r.epoch},
-            {"recon", r.train_parts[0]},
-            {"kl", r.train_parts[1]},
-            {"loss", r.train_loss},
-            {"seconds", r.train_seconds},
-            {"images_per_s", r.samples_per_s}};
-    metrics += last.dump() + "\n";
+    const json line = {{"epoch", r.epoch},
+                       {"recon", r.train_parts[0]},
+                       {"kl", r.train_parts[1]},
+                       {"loss", r.train_loss},
+                       {"seconds", r.train_seconds},
+                       {"images_per_s", r.samples_per_s}};
+    metrics += line.dump() + "\n";
+    if (r.improved) {
+      kept = line;
+      kept_bytes = save_module_bytes(*vae);
+    }
   });
   if (progress) progress->finish();
-  write_file_atomic(out + "/" + kCimVaeFile, save_module_bytes(*vae));
+  if (state.best_epoch != totals.last_epoch)
+    load_module_bytes(*vae, kept_bytes, device, "the VAE of epoch " + std::to_string(state.best_epoch));
+  write_file_atomic(out + "/" + kCimVaeFile, kept_bytes);
   write_file_atomic(out + "/" + kCimVaeMetrics, metrics);
   // Over the frames it trained on.
   const std::vector<double> kl = mean_kl(encode_frames(vae, eps, view, frames, device, true));
   const int active = active_latents(kl);
-  json fig = last;
+  json fig = kept;  // recon, kl, loss of the kept epoch
   fig["frames"] = static_cast<long>(n_frames);
   fig["epochs"] = totals.last_epoch;
+  fig["kept_epoch"] = state.best_epoch;
   fig["max_epochs"] = s.vae.epochs;
   fig["stopped_early"] = totals.stopped_early;
   fig["beta"] = s.vae.beta;
@@ -300,10 +310,13 @@ json train_vae(const Settings& s, const EpisodeSet& eps, const GreyView& view,
   fig["seconds"] = seconds_since(start);
   fig["train_seconds"] = totals.seconds;
   say(quiet, "  vae: " + std::to_string(totals.last_epoch) + " epochs" +
-                 (totals.stopped_early ? " (the loss stopped falling)" : "") + " on " +
-                 std::to_string(n_frames) + " frames, recon " +
-                 fmt("%.2f", last["recon"].get<double>()) + " kl " +
-                 fmt("%.2f", last["kl"].get<double>()) + " (beta " + fmt("%g", s.vae.beta) +
+                 (totals.stopped_early ? " (the loss stopped falling)" : "") +
+                 (state.best_epoch != totals.last_epoch
+                      ? ", kept epoch " + std::to_string(state.best_epoch) + " (lowest loss)"
+                      : "") +
+                 " on " + std::to_string(n_frames) + " frames, recon " +
+                 fmt("%.2f", kept["recon"].get<double>()) + " kl " +
+                 fmt("%.2f", kept["kl"].get<double>()) + " (beta " + fmt("%g", s.vae.beta) +
                  ") per image, " + std::to_string(active) + " of " + std::to_string(s.vae.latents) +
                  " latents active (KL > " + fmt("%g", kActiveKlNats) + " nats), " +
                  fmt("%.0f", totals.samples_per_s()) + " images/s, " +

@@ -4,6 +4,7 @@
 // is in test_learned_agents.cpp.)
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -265,6 +266,41 @@ TEST(CimCli, NoisyStepsAreNeverLabelsAndCutTheGrangerSeries) {
   }
   EXPECT_EQ(segment_rows, (std::vector<int>{11, 24, 11, 24, 11, 24}));
   EXPECT_EQ(read_json(f.run + "/causes.json")["rows"], 3 * ((11 - 3) + (24 - 3)));
+}
+
+// A VAE whose loss rises after its best epoch keeps the best epoch's weights: byte for byte
+// those of the same run stopped at that epoch (training is deterministic for a seed).
+TEST(CimCli, VaeKeepsTheEpochWithTheLowestLoss) {
+  CimFixture f;
+  const std::string cfg = f.dir / "spiky.toml";
+  test::write_text(cfg, "[vae]\nlatents = 8\nepochs = 4\nbatch_size = 32\nmax_frames = 200\n"
+                        "lr = 0.01\n"
+                        "\n[cim]\nepochs = 1\nbatch_size = 64\nseries_stride = 2\nhidden = 16\n"
+                        "\n[train]\nthreads = 1\nval_fraction = 0.25\n");
+  CommandResult r = test::run_cli(train_args(cfg, "cim", f.data, f.run));
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  std::vector<double> losses;
+  for (const std::string& l : test::split_lines(test::read_text(f.run + "/vae_metrics.jsonl")))
+    losses.push_back(json::parse(l)["loss"].get<double>());
+  ASSERT_EQ(losses.size(), 4u);
+  const int best = static_cast<int>(std::min_element(losses.begin(), losses.end()) - losses.begin()) + 1;
+  ASSERT_LT(best, 4) << "this learning rate no longer makes the loss rise after its best epoch: "
+                     << losses[0] << " " << losses[1] << " " << losses[2] << " " << losses[3];
+  const json vf = read_json(f.run + "/run.json")["figures"]["vae"];
+  EXPECT_EQ(vf["epochs"], 4);
+  EXPECT_EQ(vf["kept_epoch"], best);
+  EXPECT_EQ(vf["loss"].get<double>(), losses[static_cast<size_t>(best - 1)]);
+  EXPECT_NE(r.out.find("kept epoch " + std::to_string(best) + " (lowest loss)"), std::string::npos)
+      << r.out;
+
+  const std::string short_cfg = f.dir / "short.toml";
+  std::string text = test::read_text(cfg);
+  text.replace(text.find("epochs = 4"), 10, "epochs = " + std::to_string(best));
+  test::write_text(short_cfg, text);
+  const std::string short_run = f.dir / "short";
+  ASSERT_EQ(test::run_cli(train_args(short_cfg, "cim", f.data, short_run)).exit_code, 0);
+  EXPECT_EQ(read_json(short_run + "/run.json")["figures"]["vae"]["kept_epoch"], best);
+  EXPECT_EQ(test::read_text(short_run + "/vae.pt"), test::read_text(f.run + "/vae.pt"));
 }
 
 TEST(CimCli, FewShotReusesCausesAndTrainsOnMaxSamples) {
