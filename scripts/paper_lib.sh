@@ -33,7 +33,9 @@ restore_run() {
 
 # kept_train DIR ARGS...: `causaldrive train ARGS --out DIR`, the finished run kept in $KEEP
 # (weights and records; not cim's Granger series series.csv, 40 MB, which only `causaldrive
-# granger` reads). A kept run is used as it is, like a kept evaluation: it is copied back into
+# granger` reads, nor the policy family's resume state, model.pt and optimizer.pt: agents load
+# best.pt). A run holding a file over KEEP_MAX_MB (default 5) is not kept, since git holds no
+# file that large: it stays in DIR and a fresh checkout trains it again. A kept run is used as it is, like a kept evaluation: it is copied back into
 # DIR and not trained again, so a fresh checkout evaluates the same weights (retraining on another
 # machine gives other floats: libtorch picks its kernels by CPU). Identical files
 # (the VAE that cim-mlp and the few-shot runs copy) are one object in git. The kept folder
@@ -46,11 +48,19 @@ kept_train() {
     return 0
   fi
   "$CD" train "$@" --out "$dir"
+  local files=()
+  for file in "$dir"/*; do
+    [[ -f $file ]] || continue
+    case $(basename "$file") in series.csv | model.pt | optimizer.pt) continue ;; esac
+    if (( $(stat -c %s "$file") > ${KEEP_MAX_MB:-5} * 1000000 )); then
+      echo "$dir: not kept ($(basename "$file") is over ${KEEP_MAX_MB:-5} MB)" >&2
+      return 0
+    fi
+    files+=("$file")
+  done
   rm -rf "$kept.tmp"
   mkdir -p "$kept.tmp"
-  for file in "$dir"/*; do
-    [[ -f $file && $(basename "$file") != series.csv ]] && cp "$file" "$kept.tmp/"
-  done
+  cp "${files[@]}" "$kept.tmp/"
   mv "$kept.tmp" "$kept"
 }
 

@@ -64,32 +64,42 @@ class KeptTrainTest(TempDirCase):
     """paper_lib.sh's kept_train with a stand-in for the binary that records each call and writes
     a run (run.json, weights, series.csv) into its --out folder."""
 
-    def kept_train(self, label):
+    def kept_train(self, label, **extra):
         fake = os.path.join(self.dir, "fake_cd")
         with open(fake, "w") as f:
             f.write('#!/usr/bin/env bash\necho "$*" >> "%s/calls"\n'
                     'while [[ $1 != --out ]]; do shift; done\nmkdir -p "$2"\n'
                     'echo "{}" > "$2/run.json"; echo w > "$2/vae.pt"; echo s > "$2/series.csv"\n'
+                    'echo b > "$2/best.pt"; echo m > "$2/model.pt"; echo o > "$2/optimizer.pt"\n'
                     % self.dir)
         os.chmod(fake, 0o755)
         script = ('source "%s/scripts/paper_lib.sh"\n'
                   'kept_train "$OUT/train/seed0/%s" --method cim --seed 0\n') % (SOURCE, label)
         env = dict(os.environ, CD=fake, OUT=os.path.join(self.dir, "out"),
-                   KEEP=os.path.join(self.dir, "keep"))
+                   KEEP=os.path.join(self.dir, "keep"), **extra)
         r = subprocess.run(["bash", "-c", script], env=env, capture_output=True, text=True,
                            timeout=60)
         self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        self.stderr = r.stderr
         calls = os.path.join(self.dir, "calls")
         return open(calls).read().splitlines() if os.path.exists(calls) else []
 
-    def test_a_new_run_is_trained_and_kept_without_its_series(self):
+    def test_a_new_run_is_trained_and_kept_without_its_series_or_resume_state(self):
         calls = self.kept_train("cim")
         self.assertEqual(calls, ["train --method cim --seed 0 --out %s/out/train/seed0/cim"
                                  % self.dir])
         kept = os.path.join(self.dir, "keep", "train", "seed0", "cim")
         self.assertEqual(sorted(os.listdir(os.path.dirname(kept))), ["cim"])  # no cim.tmp left
-        self.assertEqual(sorted(os.listdir(kept)), ["run.json", "vae.pt"])
-        self.assertTrue(os.path.exists(os.path.join(self.dir, "out/train/seed0/cim/series.csv")))
+        self.assertEqual(sorted(os.listdir(kept)), ["best.pt", "run.json", "vae.pt"])
+        for name in ("series.csv", "model.pt", "optimizer.pt"):
+            self.assertTrue(os.path.exists(os.path.join(self.dir, "out/train/seed0/cim", name)))
+
+    def test_a_run_with_a_file_over_the_limit_is_trained_but_not_kept(self):
+        calls = self.kept_train("cim", KEEP_MAX_MB="0")
+        self.assertEqual(len(calls), 1)
+        self.assertFalse(os.path.exists(os.path.join(self.dir, "keep")))
+        self.assertIn("out/train/seed0/cim: not kept (", self.stderr)
+        self.assertTrue(os.path.exists(os.path.join(self.dir, "out/train/seed0/cim/vae.pt")))
 
     def test_a_kept_run_is_copied_back_and_not_trained(self):
         kept = os.path.join(self.dir, "keep", "train", "seed0", "dim")
