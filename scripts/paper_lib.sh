@@ -35,10 +35,11 @@ restore_run() {
 # (weights and records; not cim's Granger series series.csv, 40 MB, which only `causaldrive
 # granger` reads, nor the policy family's resume state, model.pt and optimizer.pt: agents load
 # best.pt). A run holding a file over KEEP_MAX_MB (default 5) is not kept, since git holds no
-# file that large: it stays in DIR and a fresh checkout trains it again. A kept run is used as it is, like a kept evaluation: it is copied back into
-# DIR and not trained again, so a fresh checkout evaluates the same weights (retraining on another
-# machine gives other floats: libtorch picks its kernels by CPU). Identical files
-# (the VAE that cim-mlp and the few-shot runs copy) are one object in git. The kept folder
+# file that large: it stays in DIR and a fresh checkout trains it again. A kept run is used as
+# it is, like a kept evaluation: it is copied back into DIR and not trained again, so a fresh
+# checkout evaluates the same weights (retraining on another machine gives other floats:
+# libtorch picks its kernels by CPU). Identical files (the VAE that cim-mlp and the few-shot
+# runs copy) are one object in git. The kept folder
 # appears whole or not at all (written as KEPT.tmp, then renamed).
 kept_train() {
   local dir=$1; shift
@@ -48,12 +49,12 @@ kept_train() {
     return 0
   fi
   "$CD" train "$@" --out "$dir"
-  local files=()
+  local files=() max_mb=${KEEP_MAX_MB:-5}
   for file in "$dir"/*; do
     [[ -f $file ]] || continue
     case $(basename "$file") in series.csv | model.pt | optimizer.pt) continue ;; esac
-    if (( $(stat -c %s "$file") > ${KEEP_MAX_MB:-5} * 1000000 )); then
-      echo "$dir: not kept ($(basename "$file") is over ${KEEP_MAX_MB:-5} MB)" >&2
+    if (( $(stat -c %s "$file") > max_mb * 1000000 )); then
+      echo "$dir: not kept ($(basename "$file") is over $max_mb MB)" >&2
       return 0
     fi
     files+=("$file")

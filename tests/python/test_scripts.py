@@ -62,7 +62,8 @@ class PaperScriptsTest(TempDirCase):
 
 class KeptTrainTest(TempDirCase):
     """paper_lib.sh's kept_train with a stand-in for the binary that records each call and writes
-    a run (run.json, weights, series.csv) into its --out folder."""
+    a run (run.json, weights, series.csv, the policy family's resume state) into its --out
+    folder."""
 
     def kept_train(self, label, **extra):
         fake = os.path.join(self.dir, "fake_cd")
