@@ -31,6 +31,8 @@
 #   WORKERS  evaluation workers             (default: 2)
 #   AUGMENT  collect.augment.fraction of the free data (default: 0.3)
 #   METHODS  seed 001's methods of train and dense (default: all seven)
+#   BENCH_STEPS, BENCH_SLICES  bench world's steps per loop and slices (default: 120000, 60;
+#            the per-slice ratio varies with the task, so the median wants many slices)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
@@ -42,6 +44,8 @@ TRIALS=${TRIALS:-1}
 WORKERS=${WORKERS:-2}
 AUGMENT=${AUGMENT:-0.3}
 METHODS=${METHODS:-"bc-so bc-oh residual dagger hd fca keyframe"}
+BENCH_STEPS=${BENCH_STEPS:-120000}
+BENCH_SLICES=${BENCH_SLICES:-60}
 CONFIG=configs/quickstart.toml  # the expert and bench steps; the tables set their own
 source scripts/paper_lib.sh
 
@@ -104,7 +108,8 @@ bench_step() {
     local f=$OUT/bench/world-$mode.json
     [[ -f $KEEP/bench/world-$mode.json ]] && continue
     mkdir -p "$(dirname "$f")"
-    "$CD" bench world --config "$(mode_config "$mode")" --steps 40000 --slices 20 --json \
+    "$CD" bench world --config "$(mode_config "$mode")" --steps "$BENCH_STEPS" \
+      --slices "$BENCH_SLICES" --json \
       > "$f.tmp" && mv "$f.tmp" "$f"
     keep_file "$f"
   done
