@@ -41,6 +41,10 @@ PolicyRunner::PolicyRunner(const std::string& dir, const std::string& expected_m
   m.nets = std::make_unique<PolicyNets>(policy_layout(m.ck.method, m.ck.model, m.ck.residual,
                                                       m.ck.fca, in.channels, in.height, in.width,
                                                       in.action_dim, in.domain));
+  if (!in.action_output.empty() && in.action_output != m.nets->layout.action_output)
+    throw DataError("checkpoint " + dir + " squashes its actions with " + in.action_output +
+                    ", which this build does not give its networks (" +
+                    m.nets->layout.action_output + ")");
   const std::string path = dir + "/" + weights_file;
   std::string bytes;
   try {

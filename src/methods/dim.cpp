@@ -261,7 +261,7 @@ TrainSummary train_dim(const Settings& settings_in, const TrainRequest& req) {
     run.settings = settings_json;
     run.dim = d;
     run.input = {eps.channels, eps.height, eps.width, 1, 1, eps.action_dim, eps.dt, eps.metres_per_pixel,
-                 eps.channel_names, eps.domain, eps.env};
+                 eps.channel_names, eps.domain, eps.env, ""};  // no action squash: dim plans
     run.data_dir = data_dir;
     run.train_samples = static_cast<long>(samples.train.size());
     run.val_samples = static_cast<long>(samples.val.size());

@@ -193,7 +193,9 @@ TrainSummary train_policy_family(const Settings& settings_in, const TrainRequest
   ck.device = dev.name;
   ck.input = {eps.channels,       eps.height, eps.width, s.model.history, s.model.history_stride,
               eps.action_dim,     eps.dt,     eps.metres_per_pixel, eps.channel_names,
-              eps.domain,         eps.env};
+              eps.domain,         eps.env,    ""};
+  // Recorded where the squash is not driving's (throttle, brake) sigmoid (InputFormat).
+  if (eps.domain != "driving" || eps.action_dim != 2) ck.input.action_output = layout.action_output;
 
   fs::create_directories(out);
   settle_pending_files(out, ck.epochs_done);

@@ -142,9 +142,7 @@ int PolicyNetImpl::action_dim() const {
 
 PolicyNetImpl::PolicyNetImpl(const PolicyNetOptions& o) : options_(o) {
   const int F = o.features, A = action_dim();
-  const std::string& out = o.output;
-  if (!out.empty() && out != "sigmoid" && out != "softplus" && out != "tanh" && out != "linear")
-    throw ConfigError("unknown policy output '" + out + "' (known: sigmoid, softplus, tanh, linear)");
+  if (!o.output.empty()) squash_action(torch::zeros({1, A}), o.output);  // a known name
   if (o.backbone == "small") {
     small = SmallBackbone(o.in_channels, o.height, o.width, F);
     register_module("backbone", small);
@@ -172,15 +170,24 @@ PolicyNetImpl::PolicyNetImpl(const PolicyNetOptions& o) : options_(o) {
   register_module("branches", branches);
 }
 
+torch::Tensor squash_action(const torch::Tensor& raw, const std::string& output) {
+  if (output == "sigmoid") return torch::sigmoid(raw);
+  if (output == "sigmoid_tanh") {
+    if (raw.size(1) != 3)
+      throw ConfigError("the sigmoid_tanh output squashes (throttle, brake, steer): 3 columns, not " +
+                        std::to_string(raw.size(1)));
+    return torch::cat({torch::sigmoid(raw.narrow(1, 0, 2)), torch::tanh(raw.narrow(1, 2, 1))}, 1);
+  }
+  if (output == "softplus") return torch::softplus(raw);
+  if (output == "tanh") return torch::tanh(raw);
+  if (output == "linear") return raw;
+  throw ConfigError("unknown policy output '" + output +
+                    "' (known: sigmoid, sigmoid_tanh, softplus, tanh, linear)");
+}
+
 torch::Tensor PolicyNetImpl::squash(const torch::Tensor& raw) const {
-  const std::string& out = options_.output.empty()
-                               ? (options_.action_head == "throttle_brake" ? std::string("sigmoid")
-                                                                           : std::string("softplus"))
-                               : options_.output;
-  if (out == "sigmoid") return torch::sigmoid(raw);
-  if (out == "softplus") return torch::softplus(raw);
-  if (out == "tanh") return torch::tanh(raw);
-  return raw;
+  if (!options_.output.empty()) return squash_action(raw, options_.output);
+  return squash_action(raw, options_.action_head == "throttle_brake" ? "sigmoid" : "softplus");
 }
 
 PolicyOutput PolicyNetImpl::forward(const torch::Tensor& image, const torch::Tensor& speed,

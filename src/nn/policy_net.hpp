@@ -36,7 +36,7 @@ struct PolicyNetOptions {
   // The output: 0 / "" take the action head's (2 sigmoid or 1 softplus outputs). Seed 001's
   // memory module learns differences of actions: action_dim = A * branches, output "linear".
   int action_dim = 0;
-  std::string output;  // "" | sigmoid | softplus | tanh | linear
+  std::string output;  // "" | an output of squash_action
   // Width of a feature given beside the image and joined before the fusion layer (residual:
   // the memory module's detached backbone feature); 0: none.
   int extra_features = 0;
@@ -48,6 +48,12 @@ PolicyNetOptions policy_net_options(const ModelSettings& m, int in_channels, int
 
 // Width of the action output of a head name: 2 (throttle, brake) or 1 (target speed).
 int action_dim_of(const std::string& action_head);
+
+// The squash of an action output (B x A), by name: "sigmoid" (throttle, brake in [0,1]),
+// "sigmoid_tanh" (driving with steer: sigmoid on throttle and brake, tanh on the steer column
+// after them, in [-1,1]), "tanh" (MuJoCo-Image's actions in [-1,1]), "softplus" (a target
+// speed, never negative), "linear" (none). ConfigError for another name.
+torch::Tensor squash_action(const torch::Tensor& raw, const std::string& output);
 
 struct PolicyOutput {
   torch::Tensor action;     // B x action_dim

@@ -29,9 +29,11 @@ PolicyNetsLayout policy_layout(const std::string& method, const ModelSettings& m
                       "(the recorded action)");
   l.action_output = model.action_head == "target_speed" ? "softplus"
                     : domain == "mujoco"                ? "tanh"
+                    : action_dim == 3                   ? "sigmoid_tanh"
                                                         : "sigmoid";
   l.policy = policy_net_options(model, model.history * frame_channels, height, width);
   l.policy.action_dim = model.action_head == "target_speed" ? 1 : action_dim;
+  l.policy.output = l.action_output;
   if (method == "fca") {
     l.has_adversary = true;
     l.adversary_hidden = fca.hidden;
@@ -54,6 +56,7 @@ PolicyNetsLayout policy_layout(const std::string& method, const ModelSettings& m
     if (residual.branches != 1)
       throw ConfigError("residual.branches > 1 needs residual.memory_target = \"residual\"");
     l.memory.action_dim = action_dim;
+    l.memory.output = l.action_output;  // it predicts actions
   }
   if (residual.policy == "residual_controller" && residual.memory_target != "residual")
     throw ConfigError("residual.policy = \"residual_controller\" adds the memory's residual to "
@@ -112,10 +115,7 @@ void PolicyNets::load_bytes(const std::string& bytes, const torch::Device& devic
 }
 
 torch::Tensor PolicyNets::squash(const torch::Tensor& raw) const {
-  if (layout.action_output == "sigmoid") return torch::sigmoid(raw);
-  if (layout.action_output == "tanh") return torch::tanh(raw);
-  if (layout.action_output == "softplus") return torch::softplus(raw);
-  return raw;
+  return squash_action(raw, layout.action_output);
 }
 
 torch::Tensor PolicyNets::control(const torch::Tensor& memory_feature) {

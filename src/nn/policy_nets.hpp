@@ -36,8 +36,10 @@ struct PolicyNetsLayout {
   bool has_adversary = false;
   int adversary_hidden = 0;
   bool has_controller = false;
-  // The squash of an action (policy and controller): sigmoid for driving's throttle and brake
-  // in [0,1], tanh for MuJoCo-Image's actions in [-1,1], softplus for a target speed.
+  // The squash of an action (policy, an action-predicting memory module and the controller;
+  // squash_action): sigmoid for driving's throttle and brake in [0,1], sigmoid_tanh when a steer
+  // in [-1,1] follows them, tanh for MuJoCo-Image's actions in [-1,1], softplus for a target
+  // speed.
   std::string action_output = "sigmoid";
 };
 

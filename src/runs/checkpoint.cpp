@@ -47,6 +47,7 @@ json checkpoint_to_json(const Checkpoint& c) {
     j["input"]["domain"] = c.input.domain;
     j["input"]["env"] = c.input.env;
   }
+  if (!c.input.action_output.empty()) j["input"]["action_output"] = c.input.action_output;
   if (!c.method_record.is_null()) j["method_record"] = c.method_record;
   return j;
 }
@@ -82,6 +83,13 @@ Checkpoint checkpoint_from_json(const json& j, const std::string& where) {
     c.input.env = in.get<std::string>("env");
     if (c.input.domain != "mujoco") throw DataError(where + ": unknown input domain '" + c.input.domain + "'");
   }
+  if (f.at("input").contains("action_output"))
+    c.input.action_output = in.get<std::string>("action_output");
+  else if (c.input.domain == "mujoco" || c.input.action_dim != 2)
+    throw DataError(where + ": trained by an earlier build whose policy squashed every action "
+                    "with a sigmoid, so it never output a negative " +
+                    std::string(c.input.domain == "mujoco" ? "action" : "steer") +
+                    ": retrain it into a new folder");
   if (j.contains("method_record")) c.method_record = j.at("method_record");
   if (c.input.channels < 1 || c.input.height < 1 || c.input.width < 1 || c.input.history < 1 ||
       c.input.stride < 1 || c.input.action_dim < 1)

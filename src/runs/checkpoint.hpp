@@ -43,6 +43,11 @@ struct InputFormat {
   // bytes.
   std::string domain = "driving";
   std::string env;
+  // The squash of the action output (PolicyNetsLayout::action_output). Written for data whose
+  // actions are not driving's (throttle, brake) pair; a record of such data without it comes from
+  // a build that squashed every action with a sigmoid (no negative steer or MuJoCo action) and
+  // is refused.
+  std::string action_output;
 };
 
 struct Checkpoint {

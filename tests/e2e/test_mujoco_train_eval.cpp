@@ -61,6 +61,7 @@ TEST_F(MujocoTrainEval, CheckpointRecordsTheDomainAndTanh) {
   EXPECT_EQ(ck["input"]["env"], "halfcheetah");
   EXPECT_EQ(ck["input"]["action_dim"], 6);
   EXPECT_EQ(ck["input"]["channels"], 3);
+  EXPECT_EQ(ck["input"]["action_output"], "tanh") << "actions in [-1, 1]";
   EXPECT_EQ(ck["settings"]["model"]["speed_loss_weight"], 0.0);
 }
 

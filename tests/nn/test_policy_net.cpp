@@ -1,15 +1,17 @@
-// The policy network (nn/policy_net): shapes and ranges of both heads, the save/load round
-// trip, the ResNet34 backbone.
+// The policy network (nn/policy_net): shapes and ranges of both heads, the action squash by
+// name and by layout, the save/load round trip, the ResNet34 backbone.
 #include "nn/policy_net.hpp"
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <string>
 #include <vector>
 
 #include <torch/torch.h>
 
 #include "core/error.hpp"
+#include "nn/policy_nets.hpp"
 
 namespace cd {
 namespace {
@@ -95,6 +97,74 @@ TEST(PolicyNet, LinearHeadIsOneLayerOnTheFeature) {
         << p.key();
   o.head = "mlp";
   EXPECT_THROW(PolicyNet{o}, ConfigError);
+}
+
+// The squash by name, against torch's own functions on a hand-made output: steer (the third
+// driving column) and MuJoCo-Image actions keep their sign.
+TEST(PolicyNet, SquashActionByName) {
+  const torch::Tensor raw = torch::tensor({{-3.0f, 0.0f, -2.0f}, {4.0f, 1.0f, 0.5f}});
+  const torch::Tensor st = squash_action(raw, "sigmoid_tanh");
+  for (int i = 0; i < 2; ++i) {
+    for (int k = 0; k < 2; ++k)
+      EXPECT_FLOAT_EQ(st[i][k].item<float>(), 1.0f / (1.0f + std::exp(-raw[i][k].item<float>())));
+    EXPECT_FLOAT_EQ(st[i][2].item<float>(), std::tanh(raw[i][2].item<float>()));
+  }
+  EXPECT_LT(st[0][2].item<float>(), -0.9f) << "a right turn is an output";
+  EXPECT_TRUE(torch::equal(squash_action(raw, "linear"), raw));
+  EXPECT_TRUE(torch::allclose(squash_action(raw, "tanh"), torch::tanh(raw)));
+  EXPECT_TRUE(torch::allclose(squash_action(raw, "softplus"), torch::softplus(raw)));
+  EXPECT_THROW(squash_action(raw.narrow(1, 0, 2), "sigmoid_tanh"), ConfigError);
+  EXPECT_THROW(squash_action(raw, "relu"), ConfigError);
+}
+
+// The networks policy_layout builds squash by the data's actions: throttle and brake in [0,1]
+// with a steer in [-1,1] after them (a free-steering ego's data), every column in [-1,1] for
+// MuJoCo-Image, for the policy and for residual's action-predicting memory module. A large
+// negative bias on the last layer must come out as a negative steer / action.
+TEST(PolicyNet, LayoutsSquashSteerAndMujocoActionsSigned) {
+  torch::manual_seed(3);
+  ModelSettings model;
+  model.features = 16;
+  model.history = 2;
+  ResidualSettings residual;
+  residual.memory_target = "action";
+  residual.branches = 1;
+  residual.policy = "stream";
+  const FcaSettings fca;
+  struct Case { const char* domain; int action_dim; const char* output; };
+  for (const Case& c : {Case{"driving", 2, "sigmoid"}, Case{"driving", 3, "sigmoid_tanh"},
+                        Case{"mujoco", 3, "tanh"}}) {
+    SCOPED_TRACE(c.domain + std::string(" x") + std::to_string(c.action_dim));
+    const PolicyNetsLayout l =
+        policy_layout("residual", model, residual, fca, 4, 32, 32, c.action_dim, c.domain);
+    EXPECT_EQ(l.action_output, c.output);
+    EXPECT_EQ(l.policy.output, c.output);
+    EXPECT_EQ(l.memory.output, c.output);
+    PolicyNets nets(l);
+    nets.set_training(false);
+    torch::NoGradGuard no_grad;
+    for (PolicyNet* net : {&nets.policy, &nets.memory}) {
+      for (auto& p : (*net)->named_parameters())
+        if (p.key().rfind("branches.", 0) == 0 && p.key().find("bias") != std::string::npos &&
+            p.value().size(0) == c.action_dim)
+          p.value().fill_(-30.0f);
+      const int channels = (*net)->options().in_channels;
+      const torch::Tensor extra = (*net)->options().extra_features > 0
+                                      ? torch::zeros({2, (*net)->options().extra_features})
+                                      : torch::Tensor();
+      const torch::Tensor a = (*net)->forward(binary_input(2, channels, 32, 32), torch::zeros({2, 1}),
+                                             torch::tensor({0, 2}, torch::kInt64), false, extra)
+                                  .action;
+      ASSERT_EQ(a.size(1), c.action_dim);
+      const torch::Tensor last = a.narrow(1, c.action_dim - 1, 1);
+      if (std::string(c.output) == "sigmoid")
+        EXPECT_GE(last.min().item<float>(), 0.0f);
+      else
+        EXPECT_LT(last.max().item<float>(), -0.99f) << a;
+      EXPECT_GE(a.min().item<float>(), std::string(c.output) == "sigmoid" ? 0.0f : -1.0f);
+      EXPECT_LE(a.max().item<float>(), 1.0f);
+    }
+  }
 }
 
 TEST(PolicyNet, SaveLoadRoundTripGivesIdenticalOutputs) {

@@ -57,6 +57,38 @@ TEST(Checkpoint, JsonRoundTrip) {
   EXPECT_THROW(checkpoint_from_json(broken, "x"), DataError) << "metrics must match epochs_done";
 }
 
+// Steering and MuJoCo-Image actions are signed: their checkpoints record the squash of the
+// action output, and one without it (an earlier build's sigmoid, never negative) is refused.
+TEST(Checkpoint, SignedActionsRecordTheirSquashAndOlderRecordsAreRefused) {
+  Checkpoint c = sample_checkpoint();
+  EXPECT_FALSE(checkpoint_to_json(c)["input"].contains("action_output"))
+      << "a (throttle, brake) record keeps its bytes";
+  c.input.action_dim = 3;
+  c.input.action_output = "sigmoid_tanh";
+  nlohmann::json j = checkpoint_to_json(c);
+  EXPECT_EQ(j["input"]["action_output"], "sigmoid_tanh");
+  EXPECT_EQ(checkpoint_from_json(j, "x").input.action_output, "sigmoid_tanh");
+  for (const char* domain : {"driving", "mujoco"}) {
+    nlohmann::json old = j;
+    old["input"].erase("action_output");
+    if (std::string(domain) == "mujoco") {
+      old["input"]["domain"] = "mujoco";
+      old["input"]["env"] = "hopper";
+    }
+    try {
+      checkpoint_from_json(old, "run/checkpoint.json");
+      FAIL() << domain << ": a signed-action record without its squash is accepted";
+    } catch (const DataError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("run/checkpoint.json"), std::string::npos) << what;
+      EXPECT_NE(what.find("retrain"), std::string::npos) << what;
+      EXPECT_NE(what.find(std::string(domain) == "mujoco" ? "negative action" : "negative steer"),
+                std::string::npos)
+          << what;
+    }
+  }
+}
+
 TEST(Checkpoint, ReadingFolders) {
   TempDir dir("cd-learn");
   EXPECT_FALSE(read_checkpoint(dir.path()).has_value());
