@@ -342,6 +342,11 @@ class PyAgent {
       throw ConfigError("the expert drives from the world, not from observations: use "
                         "env.expert_action() or info['expert_action']");
     agent_ = make_agent(name, checkpoint, settings_of(config, settings), nullptr);
+    if (agent_->steers_from_world())
+      throw ConfigError("agent " + name + " steers a free ego along the route with the expert's "
+                        "path tracker, which reads the simulator: it cannot act from observations "
+                        "alone (evaluate it with causaldrive.evaluate('" + name +
+                        "', ...), or use ego.lateral = \"route\")");
     if (agent_->goal_distance() > 0)
       throw ConfigError("agent " + name + " plans towards a route goal that observations do not "
                         "carry: evaluate it with causaldrive.evaluate('" + name + "', ...)");
@@ -360,12 +365,17 @@ class PyAgent {
 };
 
 // A Python callable as the benchmark runner's agent: it receives the observation dict (bev of
-// shape (C,H,W), or (K,C,H,W) oldest first with history K) and returns (throttle, brake).
+// shape (C,H,W), or (K,C,H,W) oldest first with history K) and returns (throttle, brake,
+// steer) for a free-steering ego, (throttle, brake) (or a steer it ignores) in route mode.
 // An object with a reset() method is reset at the start of every episode.
 class CallableAgent : public Agent {
  public:
-  CallableAgent(py::object policy, std::string label, int history, int stride)
-      : policy_(std::move(policy)), label_(std::move(label)), history_(history), stride_(stride) {}
+  CallableAgent(py::object policy, std::string label, int history, int stride, bool free)
+      : policy_(std::move(policy)),
+        label_(std::move(label)),
+        history_(history),
+        stride_(stride),
+        free_(free) {}
   std::string name() const override { return label_; }
   int history() const override { return history_; }
   int history_stride() const override { return stride_; }
@@ -386,15 +396,22 @@ class CallableAgent : public Agent {
     d["bev"] = frames;
     d["speed"] = float_array({obs.speed});
     d["command"] = obs.command;
-    const std::vector<double> a = action_values(
-        policy_(d), 2, "the policy must return (throttle, brake) or (throttle, brake, steer)", 3);
-    return Control{a[0], a[1], a.size() > 2 ? a[2] : 0.0};
+    const std::vector<double> a =
+        free_ ? action_values(policy_(d), 3,
+                              "the policy must return (throttle, brake, steer) for a "
+                              "free-steering ego (ego.lateral = \"free\")")
+              : action_values(policy_(d), 2,
+                              "the policy must return (throttle, brake) (or a steer, ignored in "
+                              "route mode)",
+                              3);
+    return Control{a[0], a[1], free_ ? a[2] : 0.0};
   }
 
  private:
   py::object policy_;
   std::string label_;
   int history_, stride_;
+  bool free_;
 };
 
 py::object evaluate(const py::object& policy, const std::string& suite, const std::string& out,
@@ -426,8 +443,9 @@ py::object evaluate(const py::object& policy, const std::string& suite, const st
     req.agent = "python";
     req.label = label.value_or("python");
     const std::string name = req.label;
-    req.make = [policy, name, history, history_stride](const Settings&, const World*) {
-      return std::make_unique<CallableAgent>(policy, name, history, history_stride);
+    req.make = [policy, name, history, history_stride](const Settings& st, const World*) {
+      return std::make_unique<CallableAgent>(policy, name, history, history_stride,
+                                             st.ego.lateral == "free");
     };
   }
   return json_to_python(run_eval(s, req).results);

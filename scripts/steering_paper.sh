@@ -50,11 +50,16 @@ CONFIG=configs/quickstart.toml  # the expert and bench steps; the tables set the
 source scripts/paper_lib.sh
 
 # free_config NAME BASE: BASE with a free-steering ego and augmented frames, as $OUT/configs/NAME.
+# BASE pins its route-mode tables with a `lateral = "route"` line, which becomes "free".
 free_config() {
   local file=$OUT/configs/$1.toml
+  if ! grep -q '^lateral = "route"' "$2"; then
+    echo "steering_paper.sh: $2 has no 'lateral = \"route\"' line to make \"free\"" >&2
+    return 1
+  fi
   mkdir -p "$OUT/configs"
-  { cat "$2"; printf '\n[ego]\nlateral = "free"\n\n[collect.augment]\nfraction = %s\n' "$AUGMENT"; } \
-    > "$file.tmp" && mv "$file.tmp" "$file"
+  { sed 's/^lateral = "route".*/lateral = "free"/' "$2"
+    printf '\n[collect.augment]\nfraction = %s\n' "$AUGMENT"; } > "$file.tmp" && mv "$file.tmp" "$file"
   echo "$file"
 }
 

@@ -43,6 +43,10 @@ class Agent {
   // Does act() steer (Control::steer)? An agent that does not cannot drive a free-steering ego
   // (ego.lateral = "free"); make_agent refuses it there.
   virtual bool steers() const { return false; }
+  // Does act() steer from the route's geometry of the World it was built with (cs, and cim
+  // without eval.cim_path, steering a free ego with the expert's path tracker)? Such an agent
+  // cannot act from observations alone (Python's causaldrive.Agent refuses it).
+  virtual bool steers_from_world() const { return false; }
   virtual void begin_episode() {}
   // The control for this step, from the observation alone (the expert was given its World
   // when it was built: it is the only privileged agent).

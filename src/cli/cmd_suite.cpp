@@ -56,11 +56,15 @@ void add_suite(CLI::App& app) {
   sub->callback([a] {
     Settings s = settings_from(a->config);
     if (!a->builtin.empty()) {
+      // The built-in suites are drawn by a route-mode ego, whatever the config says: a task
+      // it can drive needs no lane change, so both modes drive every built-in task.
+      Settings route = s;
+      route.ego.lateral = "route";
       bool any = false;
       for (const SuiteRecipe& r : builtin_suite_recipes()) {
         if (a->builtin != "all" && a->builtin != r.name) continue;
         any = true;
-        generate(s, r, a->out + "/" + r.name + ".json");
+        generate(route, r, a->out + "/" + r.name + ".json");
       }
       if (!any) throw ConfigError("unknown built-in suite '" + a->builtin + "'");
       return;

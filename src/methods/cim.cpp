@@ -1024,6 +1024,7 @@ class CimAgent : public Agent {
 
   double last_target_speed() const override { return target_; }
   bool steers() const override { return true; }  // along the route (ego.lateral = "free")
+  bool steers_from_world() const override { return free_ && !path_; }
 
  private:
   // mu of one frame, one image at a time (so a frame's mu never depends on its batch). The

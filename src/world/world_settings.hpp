@@ -40,10 +40,10 @@ struct EgoSettings {
   double max_speed = 20.0;  // m/s
   double rolling = 0.1;     // m/s^2, when moving
   double drag = 0.0008;     // 1/m
-  // Lateral control (SPEC section 1, "Ego"): "route" (SUMO keeps the ego on its route's lanes;
-  // steer is ignored) or "free" (a kinematic bicycle driven by steer in [-1, 1], placed in SUMO
-  // every step).
-  std::string lateral = "route";
+  // Lateral control (SPEC section 1, "Ego"): "free" (a kinematic bicycle driven by steer in
+  // [-1, 1], placed in SUMO every step; the default) or "route" (SUMO keeps the ego on its
+  // route's lanes; steer is ignored: the route-mode tables, methods that only learn speed).
+  std::string lateral = "free";
   double wheelbase = 2.7;   // m
   double max_steer = 0.6;   // rad of road-wheel angle at steer = +-1
   double steer_rate = 1.0;  // rad/s the road wheels turn at most

@@ -234,9 +234,12 @@ TEST(CimCli, PipelineWritesEveryStageAndGrangerReproducesTheTests) {
   EXPECT_EQ(test::read_text(f.dir / "twin/series.csv"), test::read_text(f.run + "/series.csv"));
   EXPECT_EQ(test::read_text(f.dir / "twin/predictor.pt"), pred);
 
-  // The agent loads the run; another method's name is refused.
+  // The agent loads the run; another method's name is refused. It steers a free ego (the
+  // default) along the route from the World (the expert's path tracker), a route-mode ego not.
   Settings s;
-  EXPECT_NO_THROW(make_agent("cim", f.run, s));
+  EXPECT_TRUE(make_agent("cim", f.run, s)->steers_from_world());
+  s.ego.lateral = "route";
+  EXPECT_FALSE(make_agent("cim", f.run, s)->steers_from_world());
   EXPECT_THROW(make_agent("cim-mlp", f.run, s), ConfigError);
   EXPECT_THROW(make_agent("cim", f.dir / "nowhere", s), ConfigError);
 }

@@ -86,7 +86,13 @@ for path in sys.argv[1:]:
         speed = f["speed"][:]
         assert np.all(speed >= 0) and np.all(np.isfinite(speed)), f"{path}: bad speeds"
         action = f["action"][:]
-        assert np.all((action >= 0) & (action <= 1)), f"{path}: actions outside [0,1]"
+        names = [n.decode() if isinstance(n, bytes) else str(n) for n in f.attrs["action_names"]]
+        # The default ego steers (ego.lateral = "free"): throttle, brake in [0,1], steer in [-1,1].
+        assert names == ["throttle", "brake", "steer"], f"{path}: action_names {names}"
+        assert action.shape == (T, 3), f"{path}: action shape {action.shape}"
+        assert np.all((action[:, :2] >= 0) & (action[:, :2] <= 1)), f"{path}: pedals outside [0,1]"
+        assert np.all(np.abs(action[:, 2]) <= 1), f"{path}: steer outside [-1,1]"
+        assert np.abs(action[:, 2]).max() > 0.05, f"{path}: the expert never steered"
         # The causes agree with each other and with the documented codes.
         c = {name: f["causes"][name][:] for name in causes}
         assert sorted(causes) == ["junction_distance", "lead_distance", "lead_present",
@@ -145,8 +151,10 @@ TEST(Collect, WritesEpisodesWithTheDatasetLayout) {
   EXPECT_EQ(manifest["settings"]["collect"]["out"], out);
 }
 
-// A free-steering ego (issue 13): the config's extra table, and what its data must hold.
+// A free-steering ego (issue 13, the default) and a route-mode one: the config's extra table,
+// and what their data must hold.
 const char* kFreeSteering = "\n[ego]\nlateral = \"free\"\n";
+const char* kRouteMode = "\n[ego]\nlateral = \"route\"\n";
 
 void expect_deterministic_and_seed_dependent(const std::string& extra,
                                              const std::vector<std::string>& more) {
@@ -185,7 +193,9 @@ void expect_deterministic_and_seed_dependent(const std::string& extra,
   }
 }
 
-TEST(Collect, IsDeterministicAndSeedDependent) { expect_deterministic_and_seed_dependent("", {}); }
+TEST(Collect, IsDeterministicAndSeedDependent) {
+  expect_deterministic_and_seed_dependent(kRouteMode, {});
+}
 
 TEST(CollectSteering, IsDeterministicAndSeedDependentWithSteerNoise) {
   // town-c: two lanes per direction, so the free ego changes lanes where its route needs it.
@@ -244,7 +254,7 @@ void expect_resume_after_kill(const std::string& extra) {
   EXPECT_TRUE(test::read_text(out + "/" + episode_file_name(0)) == before);
 }
 
-TEST(Collect, ResumesAfterTheProcessGroupWasKilled) { expect_resume_after_kill(""); }
+TEST(Collect, ResumesAfterTheProcessGroupWasKilled) { expect_resume_after_kill(kRouteMode); }
 
 TEST(CollectSteering, ResumesAfterTheProcessGroupWasKilled) {
   expect_resume_after_kill(kFreeSteering);

@@ -24,7 +24,8 @@ TEST(BenchEval, LearnedAgentEvaluatesReproducibly) {
   test::TinyRun run({.method = "bc-oh",
                      .traffic = "regular",
                      .extra = "\n[train]\nepochs = 1\nmax_samples = 300\nthreads = 1\n"
-                              "\n[model]\naction_head = \"target_speed\"\n"});
+                              "\n[model]\naction_head = \"target_speed\"\n"
+                              "\n[ego]\nlateral = \"route\"\n"});  // a target speed: no steer
   run.eval("a", 1, "quickstart");
   run.eval("b", 2, "quickstart");
   json res = run.results("a");
@@ -84,10 +85,13 @@ TEST(DimCli, TrainsAndDrivesInTheSimulator) {
 // the lateral error. A policy trained without steer is refused there with one line.
 TEST(SteeringAgents, TrainedOnSteeringDataTheyDriveAFreeEgo) {
   const std::string free = "\n[ego]\nlateral = \"free\"\n";
+  const std::string route = "\n[ego]\nlateral = \"route\"\n";
   test::TinyRun bc({.method = "bc-so",
                     .traffic = "empty",
                     .extra = free + "\n[train]\nepochs = 1\nmax_samples = 300\nthreads = 1\n",
                     .suite = {.traffic = "empty", .scenarios = {"route"}}});
+  EXPECT_EQ(test::read_json(bc.run() + "/checkpoint.json")["input"]["action_output"], "sigmoid_tanh")
+      << "steer in [-1, 1] after throttle and brake in [0, 1]";
   bc.eval("eval");
   json res = bc.results("eval");
   ASSERT_EQ(res["episodes"].size(), 1u);
@@ -126,7 +130,7 @@ TEST(SteeringAgents, TrainedOnSteeringDataTheyDriveAFreeEgo) {
   EXPECT_TRUE(res["episodes"][0].contains("lateral_error_m")) << res.dump();
   EXPECT_GT(res["episodes"][0]["agent"]["plans"].get<double>(), 0.0) << res.dump();
   const std::string route_config =
-      test::write_test_config(cim.dir(), "empty", with_path, "route.toml");
+      test::write_test_config(cim.dir(), "empty", route + with_path, "route.toml");
   r = test::run_cli(
       test::eval_args(route_config, "cim", cim.run(), cim.suite(), cim.dir() / "route", 1));
   test::expect_one_line_error(r, "needs ego.lateral");
@@ -142,7 +146,8 @@ TEST(SteeringAgents, TrainedOnSteeringDataTheyDriveAFreeEgo) {
 TEST(SteeringAgents, APolicyTrainedWithoutSteerIsRefusedOnAFreeEgo) {
   test::TinyRun route({.method = "bc-so",
                        .traffic = "empty",
-                       .extra = "\n[train]\nepochs = 1\nmax_samples = 200\nthreads = 1\n",
+                       .extra = "\n[ego]\nlateral = \"route\"\n"
+                                "\n[train]\nepochs = 1\nmax_samples = 200\nthreads = 1\n",
                        .suite = {.traffic = "empty", .scenarios = {"route"}}});
   const std::string free_config = test::write_test_config(
       route.dir(), "empty", "\n[ego]\nlateral = \"free\"\n", "free.toml");

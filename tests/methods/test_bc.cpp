@@ -70,6 +70,7 @@ TEST(PolicyAgent, LoadsACheckpointAndDrives) {
   TempDir dir("cd-learn");
   const std::string ck = train_tiny(dir, "bc-oh", "throttle_brake");
   Settings s;
+  s.ego.lateral = "route";  // the hand-made episodes hold (throttle, brake): no steer
   std::unique_ptr<Agent> agent = make_agent("bc-oh", ck, s);
   EXPECT_EQ(agent->name(), "bc-oh");
   EXPECT_EQ(agent->history(), 3);
@@ -109,7 +110,9 @@ TEST(PolicyAgent, LoadsACheckpointAndDrives) {
 TEST(PolicyAgent, TargetSpeedHeadGoesThroughThePid) {
   TempDir dir("cd-learn");
   const std::string ck = train_tiny(dir, "bc-so", "target_speed");
-  std::unique_ptr<Agent> agent = make_agent("bc-so", ck, Settings{});
+  Settings s;
+  s.ego.lateral = "route";  // a target-speed head learns no steer
+  std::unique_ptr<Agent> agent = make_agent("bc-so", ck, s);
   EXPECT_EQ(agent->history(), 1);
   EpisodeSet set = load_episode_set(dir / "data");
   std::vector<std::vector<uint8_t>> buffers;

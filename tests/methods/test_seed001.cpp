@@ -86,6 +86,7 @@ Settings tiny_settings() {
   s.train.batch_size = 8;
   s.train.threads = 1;
   s.train.lr = 1e-3;
+  s.ego.lateral = "route";  // the hand-made episodes hold (throttle, brake): no steer
   return s;
 }
 
@@ -327,7 +328,7 @@ TEST_P(FamilyMethods, SameSeedSameBytesAndResumeEqualsOneRun) {
   }
 
   // It drives as an agent: frames in, a valid control out.
-  std::unique_ptr<Agent> agent = make_agent(method, a, Settings{});
+  std::unique_ptr<Agent> agent = make_agent(method, a, s);
   EXPECT_EQ(agent->history(), 3);
   EpisodeSet set = load_episode_set(dir / "data");
   std::vector<std::vector<uint8_t>> buffers(3, std::vector<uint8_t>(set.frame_values()));
@@ -346,7 +347,7 @@ TEST_P(FamilyMethods, SameSeedSameBytesAndResumeEqualsOneRun) {
   EXPECT_LE(ctl.brake, 1.0);
 
   // A folder of another method is refused, and so is one trained with other method settings.
-  EXPECT_THROW(make_agent(method == "hd" ? "fca" : "hd", a, Settings{}), ConfigError);
+  EXPECT_THROW(make_agent(method == "hd" ? "fca" : "hd", a, s), ConfigError);
   Settings other = s;
   other.residual.branches = 2;
   other.fca.adversary_weight = 1.0;

@@ -13,7 +13,10 @@ from support import FAST, TempDirCase, cli, write_config
 
 class DrivingEnvTest(TempDirCase):
     def test_spaces_and_step_loop(self):
-        with causaldrive.make("town-a", settings=dict(FAST, **{"world.traffic": "empty"})) as env:
+        """Route mode (ego.lateral = "route"): the action is (throttle, brake)."""
+        route = dict(FAST, **{"world.traffic": "empty", "ego.lateral": "route"})
+        with causaldrive.make("town-a", settings=route) as env:
+            self.assertFalse(env.steers)
             bev = causaldrive._core.settings_json()["bev"]
             self.assertEqual(env.observation_space["bev"].shape,
                              (len(env.channel_names), bev["height"], bev["width"]))
@@ -91,9 +94,9 @@ class DrivingEnvTest(TempDirCase):
             env.close()
 
     def test_free_steering(self):
-        """ego.lateral = "free": the action gains steer, the expert's steer keeps the lane, and a
-        hard right turn leaves the road (the episode ends as offroad)."""
-        free = dict(FAST, **{"world.traffic": "empty", "ego.lateral": "free"})
+        """ego.lateral = "free" (the default): the action gains steer, the expert's steer keeps
+        the lane, and a hard right turn leaves the road (the episode ends as offroad)."""
+        free = dict(FAST, **{"world.traffic": "empty"})
         with causaldrive.make("town-a", settings=free) as env:
             self.assertTrue(env.steers)
             self.assertEqual(env.action_space.shape, (3,))
@@ -127,10 +130,10 @@ class DrivingEnvTest(TempDirCase):
             obs_a, info_a = env.reset(seed=13)
             self.assertEqual(info_a["episode"], 13 % 8)
             for _ in range(5):
-                obs_a, *_ = env.step([0.5, 0.0])
+                obs_a, *_ = env.step([0.5, 0.0, 0.0])
             obs_b, info_b = env.reset(options={"episode": 5})
             for _ in range(5):
-                obs_b, *_ = env.step([0.5, 0.0])
+                obs_b, *_ = env.step([0.5, 0.0, 0.0])
             np.testing.assert_array_equal(obs_a["bev"], obs_b["bev"])
             self.assertEqual(obs_a["speed"][0], obs_b["speed"][0])
             with self.assertRaises(causaldrive.ConfigError):
@@ -153,20 +156,20 @@ class DrivingEnvTest(TempDirCase):
         env = causaldrive.make("town-a", settings=FAST)
         try:
             with self.assertRaises(causaldrive.Error) as e:
-                env.step([0.0, 0.0])
+                env.step([0.0, 0.0, 0.0])
             self.assertIn("before reset", str(e.exception))
             env.reset(seed=1)
-            for bad in ([0.5], [[0.5, 0.0]], [0.1, 0.2, 0.3], "go"):
+            for bad in ([0.5], [0.5, 0.0], [[0.5, 0.0, 0.0]], [0.1, 0.2, 0.3, 0.4], "go"):
                 with self.assertRaises(ValueError) as e:
                     env.step(bad)
                 self.assertIn("action", str(e.exception))
             with self.assertRaises(ValueError):
-                env.step([float("nan"), 0.0])
+                env.step([float("nan"), 0.0, 0.0])
             # One libsumo simulation per process: a second world is refused while one is open.
             with self.assertRaises(causaldrive.Error) as e:
                 causaldrive.make("town-b")
             self.assertIn("close()", str(e.exception))
-            env.step(np.array([0.0, 1.0], dtype=np.float32))  # still usable
+            env.step(np.array([0.0, 1.0, 0.0], dtype=np.float32))  # still usable
         finally:
             env.close()
         with self.assertRaises(causaldrive.Error):
@@ -201,7 +204,7 @@ class DrivingEnvTest(TempDirCase):
         env = entry(settings=FAST, **kwargs)
         try:
             self.assertIsInstance(env, Env)
-            self.assertEqual(env.action_space.kwargs["shape"], (2,))
+            self.assertEqual(env.action_space.kwargs["shape"], (3,))  # the default ego steers
             self.assertEqual(set(env.observation_space.args[0]), {"bev", "speed", "command"})
             obs, info = env.reset(seed=3)
             self.assertEqual(env.seeded, 3)
