@@ -1,9 +1,10 @@
 // A free-steering ego (ego.lateral = "free", issue 13): the kinematic bicycle against an
 // independent fine integration of its equations and hand-computed poses, the lane contact
-// events on a hand-made road, and the steering expert in closed loop on every built-in town and
+// events on a hand-made road and on a scripted drive in the simulator, and the steering expert in closed loop on every built-in town and
 // on a random network generated here.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -210,6 +211,68 @@ TEST(SteeringExpert, DrivesARandomNetworkItHasNeverSeen) {
        "--default.lanenumber", "1", "--tls.guess", "--no-turnarounds", "true", "-o", net});
   ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
   for (uint64_t seed : {3, 4, 5}) expert_drives(net, seed);
+}
+
+// A scripted drive in the simulator (town-a: one lane per direction, 3.5 m wide, straight 110 m
+// blocks): the ego steers towards a lateral offset from its start lane's centre line, first the
+// opposing lane's centre (+3.5 m), then beyond the road (+12 m). The lane-invasion onset comes
+// first (a corner across the centre line), then the wrong-way onset (the centre on the opposing
+// lane), each counted once, and the episode ends as `offroad` once no point of the footprint is
+// on a driving lane. Before the first swerve, driving on its own lane raises nothing.
+TEST(WorldEvents, ScriptedSwerveInvadesGoesWrongWayThenLeavesTheRoad) {
+  test::TempDir dir("cdtest-steer-events");
+  const Settings s = free_settings(dir, "town-a");
+  World w(s);
+  Task task;
+  for (uint64_t seed = 1; seed < 200 && task.route.empty(); ++seed) {
+    const Task t = w.sample_task(seed, 150, 400);
+    if (w.network().rightmost_lane(t.route.front()).length - t.start_pos > 60) task = t;
+  }
+  ASSERT_FALSE(task.route.empty()) << "no town-a task with 60 m of its first edge ahead";
+  w.reset(task);
+  const LaneGeom lane = *w.map().find(w.ego().lane);  // the start lane, a straight line
+  // Steer towards `offset` m left of the start lane's centre line: a PD law on the offset
+  // (the desired heading error is proportional to the offset still to go).
+  auto towards = [&](double offset) {
+    const LaneProjection p = project_on_lane(lane, w.ego().pose.pos);
+    const double want = std::clamp(0.15 * (offset - p.lateral), -0.5, 0.5);
+    const double heading = wrap_angle(w.ego().pose.heading - p.direction);
+    const double speed = w.ego().speed;
+    return Control{speed < 6.0 ? 0.5 : 0.0, 0.0, std::clamp(2.0 * (want - heading), -1.0, 1.0)};
+  };
+  StepResult r;
+  for (int i = 0; i < 30; ++i) {  // gather speed on the lane
+    r = w.step(towards(0.0));
+    ASSERT_EQ(r.outcome, Outcome::Running);
+    EXPECT_FALSE(r.lane_invasion || r.wrong_way) << "step " << i;
+  }
+  EXPECT_EQ(w.counters().lane_invasions, 0);
+  EXPECT_EQ(w.counters().wrong_way, 0);
+  int invasion_step = -1, wrong_way_step = -1;
+  for (int i = 0; i < 100 && wrong_way_step < 0; ++i) {
+    r = w.step(towards(3.5));
+    ASSERT_EQ(r.outcome, Outcome::Running) << "step " << i;
+    if (r.lane_invasion && invasion_step < 0) invasion_step = i;
+    if (r.wrong_way) wrong_way_step = i;
+  }
+  ASSERT_GE(invasion_step, 0) << "no lane invasion while crossing the centre line";
+  ASSERT_GE(wrong_way_step, 0) << "the centre on the opposing lane was not wrong way";
+  EXPECT_LT(invasion_step, wrong_way_step);
+  EXPECT_GT(project_on_lane(lane, w.ego().pose.pos).lateral, 1.75) << "wrong way on its own lane";
+  EXPECT_EQ(w.counters().wrong_way, 1);
+  EXPECT_GE(w.counters().lane_invasions, 1);
+  EXPECT_TRUE(w.road_contact().wrong_way);
+  EXPECT_FALSE(w.road_contact().offroad);
+  double last_lateral = 0;
+  for (int i = 0; i < 150 && r.outcome == Outcome::Running; ++i) {
+    last_lateral = project_on_lane(lane, w.ego().pose.pos).lateral;
+    r = w.step(towards(12.0));
+  }
+  EXPECT_EQ(outcome_name(r.outcome), std::string("offroad"));
+  // Off the road: the whole footprint beyond the opposing lane's far edge (+5.25 m), give or
+  // take half the footprint's diagonal sweep in one step.
+  EXPECT_GT(last_lateral, 5.25);
+  EXPECT_EQ(w.counters().wrong_way, 1) << "one onset while on the opposing lane";
 }
 
 // town-c has two lanes per direction and starts a free ego on the rightmost: routes that turn
