@@ -146,7 +146,7 @@ run_step() {
     train) train_step ;;
     table1)
       CONFIG=$(free_config cim configs/cim_paper.toml) OUT=$OUT/cim KEEP=$KEEP/cim CIM_PATH=dim \
-        eval_agents table1 all clean \
+        eval_agents table1 all,lateral clean \
         "town-a-regular town-a-dense town-a-stopgo town-b-regular town-b-dense town-b-stopgo" \
         cs dim rip cim
       ;;

@@ -269,6 +269,22 @@ std::vector<MetricSet> parse_metric_sets(const std::string& spec) {
   return out;
 }
 
+bool steers_freely(const RunResult& run) {
+  auto value = [&](const char* key) {
+    auto it = run.summary.find(key);
+    return it == run.summary.end() ? std::optional<double>() : it->second;
+  };
+  const std::optional<double> offroad = value("offroad_rate");
+  return value("mean_lateral_error_m").has_value() || (offroad && *offroad > 0);
+}
+
+std::vector<MetricSet> default_metric_sets(const std::vector<RunResult>& runs) {
+  if (!runs.empty() && std::all_of(runs.begin(), runs.end(), [](const RunResult& r) { return r.mujoco; }))
+    return parse_metric_sets("return");
+  const bool free = std::any_of(runs.begin(), runs.end(), steers_freely);
+  return parse_metric_sets(free ? "all,lateral" : "all");
+}
+
 std::vector<std::string> find_result_files(const std::vector<std::string>& run_dirs) {
   std::vector<std::string> files;
   std::set<fs::path> seen;

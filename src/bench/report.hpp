@@ -72,9 +72,18 @@ const std::vector<FailureCondition>& failure_conditions();
 // The known sets, in the order `all` prints them.
 const std::vector<MetricSet>& metric_sets();
 
-// Parses the --metrics value: `error`, `outcomes`, `stopgo`, `lights`, `failure`, `return`
-// (MuJoCo-Image), `all` (the driving sets), or a comma-separated list of them. Throws ConfigError naming the unknown value.
+// Parses the --metrics value: `error`, `outcomes`, `stopgo`, `lights`, `failure`, `lateral`
+// (a free-steering ego), `return` (MuJoCo-Image), `all` (the driving sets but lateral), or a
+// comma-separated list of them. Throws ConfigError naming the unknown value.
 std::vector<MetricSet> parse_metric_sets(const std::string& spec);
+
+// Does the run come from a free-steering ego (ego.lateral = "free")? Its summary has a lateral
+// error (null in route mode, where the ego rides its lane's centre) or an off-road episode.
+bool steers_freely(const RunResult& run);
+
+// The sets of `report` without --metrics (and of quickstart's table): `return` when every run is
+// MuJoCo-Image; else `all`, plus `lateral` (off-road beside the error) when a run steers freely.
+std::vector<MetricSet> default_metric_sets(const std::vector<RunResult>& runs);
 
 // Mean and sample standard deviation of one metric over the seeds of one (label, suite).
 struct CellStats {

@@ -81,7 +81,7 @@ void add_quickstart(CLI::App& app) {
     std::vector<RunResult> results;
     for (const auto& f : find_result_files(runs)) results.push_back(load_result(f));
     std::printf("\n%s", render_markdown(build_report(results),
-                                        parse_metric_sets("all")).c_str());
+                                        default_metric_sets(results)).c_str());
     const double secs =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::printf("\nresults: %s/<agent>/results.json; `causaldrive report %s` prints the tables "

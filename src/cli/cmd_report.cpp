@@ -40,8 +40,10 @@ void add_report(CLI::App& app) {
                   "evaluation output folders holding results.json, or folders under which they "
                   "lie (searched recursively)");
   sub->add_option("--metrics,-m", args->metrics,
-                  "error | outcomes | stopgo | lights | failure | return | all, or a "
-                  "comma-separated list (default: all, or return when every run is MuJoCo-Image); "
+                  "error | outcomes | stopgo | lights | failure | lateral | return | all, or a "
+                  "comma-separated list (default: all, plus lateral when a run steers freely, or "
+                  "return when every run is MuJoCo-Image); lateral: off-road beside the error, "
+                  "wrong way, lane invasions and lateral error of a free-steering ego; "
                   "return: return and copycat R2 of MuJoCo-Image runs (eval --env); failure: seed 001's failure-mode tables, one per "
                   "condition (training town, new sensor, new town)")
       ->type_name("SETS");
@@ -59,9 +61,9 @@ void add_report(CLI::App& app) {
     std::vector<RunResult> runs;
     for (const std::string& file : find_result_files(args->run_dirs))
       runs.push_back(load_result(file));
-    // MuJoCo-Image runs only, no --metrics: their table.
-    if (default_sets && std::all_of(runs.begin(), runs.end(), [](const RunResult& r) { return r.mujoco; }))
-      sets = parse_metric_sets("return");
+    // No --metrics: the driving sets (with lateral control when a run steers freely), or
+    // MuJoCo-Image's table.
+    if (default_sets) sets = default_metric_sets(runs);
     ReportTable table = build_report(runs);
     std::string markdown = render_markdown(table, sets);
     if (!args->csv.empty()) write_output("--csv", args->csv, render_csv(table, sets));

@@ -98,9 +98,11 @@ TruthStep compute_ground_truth(const TruthInputs& in) {
     }
   }
 
-  // The first signalised link on the path ahead.
+  // The first signalised link on the path ahead: not the junction lane the ego is in (the
+  // path's first lane), but one that begins right at its front (s_begin 0: the ego stands at
+  // the very end of its approach lane, as a free ego's SUMO stand-in often does for a step).
   for (const PathLane& pl : path.lanes) {
-    if (pl.s_begin <= 0 || !pl.lane->internal) continue;
+    if (&pl == &path.lanes.front() || pl.s_begin < 0 || !pl.lane->internal) continue;
     const ViaInfo* vi = in.net.find_via(pl.lane->id);
     if (!vi || vi->tls.empty()) continue;
     char state = in.link_state(*vi);

@@ -257,6 +257,42 @@ TEST(ReportCli, MetricsAllIsDefault) {
   EXPECT_FALSE(has(two, "## Outcomes")) << two;
 }
 
+// A free-steering run (a lateral error in its summary) brings the lateral-control table into the
+// default report, off-road beside the error; route-mode runs alone do not.
+TEST(ReportCli, FreeSteeringRunsAddTheLateralTableByDefault) {
+  TempDir dir("cdtest-report");
+  put(dir / "route", results("expert", "town-a-regular",
+                             {{"offroad_rate", 0.0}, {"mean_lateral_error_m", nullptr}}, "route"));
+  CommandResult r = test::run_cli({"report", dir / "route"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_FALSE(has(r.out, "## Lateral control")) << r.out;
+  put(dir / "free", results("dim", "town-a-regular",
+                            {{"success_rate", 0.2}, {"collision_rate", 0.3},
+                             {"timeout_rate", 0.0}, {"inertia_rate", 0.0}, {"error_rate", 0.3},
+                             {"offroad_rate", 0.5}, {"mean_lateral_error_m", 0.42},
+                             {"wrong_way_per_km", 1.25}, {"lane_invasions_per_km", 3.0},
+                             {"lane_changes_per_km", 0.0}},
+                            "free"));
+  r = test::run_cli({"report", dir / "route", dir / "free"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  ASSERT_TRUE(has(r.out, "## Lateral control")) << r.out;
+  const std::string lateral = r.out.substr(r.out.find("## Lateral control"));
+  EXPECT_TRUE(has(lateral, "town-a-regular off-road %")) << lateral;
+  // free: off-road 50.0, error 30.0, wrong way 1.25 / km, lateral error 0.42 m.
+  const std::string free_row = lateral.substr(lateral.find("| free"));
+  EXPECT_TRUE(has(free_row, "50.0")) << free_row;
+  EXPECT_TRUE(has(free_row, "1.25")) << free_row;
+  EXPECT_TRUE(has(free_row, "0.42")) << free_row;
+  EXPECT_TRUE(has(lateral.substr(lateral.find("| route")), "n/a")) << "route: no lateral error";
+  // An explicit --metrics is kept as given.
+  r = test::run_cli({"report", dir / "free", "--metrics", "error"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_FALSE(has(r.out, "## Lateral control")) << r.out;
+  std::vector<RunResult> runs = {load_result(dir / "free/results.json")};
+  EXPECT_TRUE(steers_freely(runs[0]));
+  EXPECT_EQ(default_metric_sets(runs).back().name, "lateral");
+}
+
 TEST(ReportErrors, MissingFolder) {
   TempDir dir("cdtest-report");
   std::string line = expect_one_line_error(test::run_cli({"report", dir / "nope"}), "missing");

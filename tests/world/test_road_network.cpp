@@ -240,6 +240,19 @@ TEST(GroundTruth, LeaderLightAndPathFreeByHand) {
   EXPECT_TRUE(t.truth.path_free) << "56 m < 60 m";
   t = truth_of(net, path, {}, 11.0, ws, j);
   EXPECT_FALSE(t.truth.path_free) << "60.5 + 6 m > 60 m";
+
+  // The front at the very end of the approach lane: the light is 0 m ahead (a step into the
+  // junction from here enters it on red). Inside the junction, the link it is on is behind.
+  t = truth_of(net, trace_route_path(net, kRoute, plan, "A_0", 100, 80), {}, 0.0, ws, j);
+  EXPECT_EQ(t.truth.tl_state, kTlRed);
+  EXPECT_DOUBLE_EQ(t.truth.tl_distance, 0);
+  EXPECT_EQ(t.next_light_state, 'r');
+  EXPECT_DOUBLE_EQ(t.next_light_distance, 0);
+  EXPECT_EQ(light_at_junction_entry("A_0", ":J_0_0", t.next_light_state, t.next_light_distance),
+            kTlRed);
+  t = truth_of(net, trace_route_path(net, kRoute, plan, ":J_0_0", 0, 80), {}, 0.0, ws, j);
+  EXPECT_EQ(t.truth.tl_state, kTlNone);
+  EXPECT_EQ(t.next_light_state, 0);
 }
 
 TEST(GroundTruth, PedestriansYieldingAndCommand) {

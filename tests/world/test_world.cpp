@@ -653,6 +653,40 @@ TEST(WorldRedLight, ExpertNeverRunsARedLight) {
   EXPECT_GT(met_red, 0) << "the expert never had to stop for a red light: the test proves nothing";
 }
 
+// Every light-controlled junction on the route is one junction entry (StepResult::entered_light,
+// what the green-light rate and red-light violations count), in both lateral modes: the oracle
+// is the route's lane sequence at reset (a normal lane followed by a signalised junction lane),
+// not the ground truth. A free ego's SUMO stand-in often stands for a step at the very end of
+// its approach lane, where the light is 0 m ahead: such entries were once missed.
+TEST(WorldRedLight, EveryLightOnTheRouteIsOneJunctionEntryInBothModes) {
+  for (const char* mode : {"route", "free"}) {
+    Settings s = test_settings();
+    s.ego.lateral = mode;
+    World w(s);
+    Autopilot expert(s.expert);
+    int total = 0;
+    for (uint64_t seed = 0; seed < 6; ++seed) {
+      w.reset(w.sample_task(seed, 150, 300));
+      int lights = 0;
+      const std::vector<std::string> lanes = w.route_lanes();
+      for (size_t i = 1; i < lanes.size(); ++i) {
+        const ViaInfo* via = w.network().find_via(lanes[i]);
+        lights += lanes[i - 1][0] != ':' && lanes[i][0] == ':' && via && !via->tls.empty();
+      }
+      int entries = 0;
+      StepResult r;
+      while (r.outcome == Outcome::Running) {
+        r = w.step(expert.act(w));
+        entries += r.entered_light != kTlNone;
+      }
+      ASSERT_EQ(r.outcome, Outcome::Success) << mode << " seed " << seed;
+      EXPECT_EQ(entries, lights) << mode << " seed " << seed;
+      total += lights;
+    }
+    EXPECT_GT(total, 6) << mode << ": too few lights on the routes for the test to say much";
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 // BEV of the live world
 
