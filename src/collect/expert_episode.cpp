@@ -67,10 +67,8 @@ Control ExpertRecorder::record_step(EpisodeData& d, Rng* augment) const {
     }
     d.augment.insert(d.augment.end(), {static_cast<float>(shift), static_cast<float>(turn)});
   }
-  Pose2 seen = world_.ego().pose;
+  const Pose2 seen = shifted_pose(world_.ego().pose, shift, turn);
   if (augmented) {
-    seen.pos = seen.pos + Vec2{-std::sin(seen.heading), std::cos(seen.heading)} * shift;
-    seen.heading += turn;
     BevScene scene = world_.scene();
     scene.ego = seen;
     world_.renderer().render_packed(scene, d.bev_packed.data() + at);

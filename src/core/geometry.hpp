@@ -29,6 +29,13 @@ inline Vec2 to_ego_frame(const Pose2& ego, Vec2 p) {
   return {c * d.x + s * d.y, -s * d.x + c * d.y};
 }
 
+// `pose` moved `shift` m to its left and turned by `turn` rad: the pose a frame of the lateral
+// augmentation (collect.augment) is rendered from, and the frame its labels are expressed in.
+inline Pose2 shifted_pose(const Pose2& pose, double shift, double turn) {
+  return {pose.pos + Vec2{-std::sin(pose.heading), std::cos(pose.heading)} * shift,
+          pose.heading + turn};
+}
+
 // SUMO reports compass degrees (0 = north, clockwise); convert to our heading.
 inline double heading_from_sumo_angle(double deg) {
   return (90.0 - deg) * M_PI / 180.0;

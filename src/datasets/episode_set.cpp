@@ -82,6 +82,7 @@ PackedEpisode pack(const std::string& path, const EpisodeData& d) {
   p.action = d.action;
   p.command = d.command;
   p.pose = d.pose;
+  p.augment = d.augment;
   p.noise = d.noise.empty() ? std::vector<uint8_t>(d.frames(), 0) : d.noise;
   p.causes = d.causes;
   auto it = d.causes.find("path_free");

@@ -35,6 +35,9 @@ struct PackedEpisode {
   std::vector<int32_t> command;  // T, cd::Command (MuJoCo: zeros)
   std::vector<float> path_free;  // T, ground truth 0/1; empty when the file has none
   std::vector<float> pose;       // T*3: x, y (m, network frame), heading (rad, 0 = east, CCW)
+  // T*2: the lateral augmentation's shift (m, left +) and turn (rad) of the pose each frame was
+  // rendered from (0 0: the true pose); empty when the file has none.
+  std::vector<float> augment;
   // T: 1 where the executed action was not the expert's (data/episode.hpp); all 0 for files
   // without the mask. Methods whose target is the motion itself leave these steps out.
   std::vector<uint8_t> noise;
