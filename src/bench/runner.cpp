@@ -88,15 +88,25 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
     const Observation& obs = feed.observe();
     Control c = agent.act(obs);
     if (trace_csv) {
+      // A free-steering ego adds its steer, pose (network frame) and lane errors.
+      const bool free = world.free_lateral();
       if (trace_csv->empty()) {
         *trace_csv = "time_s,speed,command,throttle,brake,target_speed";
+        if (free) *trace_csv += ",steer,x,y,heading,lateral_error_m,heading_error";
         for (const CauseSeries& cs : cause_schema()) *trace_csv += std::string(",") + cs.name;
         *trace_csv += "\n";
       }
-      char field[64];
+      char field[160];
       std::snprintf(field, sizeof field, "%.1f,%.3f,%d,%.3f,%.3f,%.3f", world.time(),
                     world.ego().speed, obs.command, c.throttle, c.brake, agent.last_target_speed());
       *trace_csv += field;
+      if (free) {
+        const Pose2& p = world.ego().pose;
+        const RoadContact& rc = world.road_contact();
+        std::snprintf(field, sizeof field, ",%.3f,%.2f,%.2f,%.4f,%.3f,%.4f", c.steer, p.pos.x,
+                      p.pos.y, p.heading, rc.lateral_error, rc.heading_error);
+        *trace_csv += field;
+      }
       for (const CauseSeries& cs : cause_schema()) {
         std::snprintf(field, sizeof field, ",%.6g", cs.value(world.truth()));
         *trace_csv += field;

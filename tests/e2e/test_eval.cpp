@@ -4,7 +4,10 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -63,6 +66,60 @@ TEST(BenchEval, ResultsHaveTheContractKeysAndTheExpertSucceeds) {
   EXPECT_GE(s["stop_go_events"].get<int>(), 2);
   EXPECT_EQ(s["stalls"].get<int>(), 0);
   for (const auto& e : res["episodes"]) EXPECT_EQ(e["outcome"], "success");
+}
+
+// --trace: one line per agent step; a free-steering ego (the default) adds its steer, pose and
+// lane errors, whose positions advance by the speed times dt; a route-mode ego has none of them.
+TEST(BenchEval, TraceHasOneLinePerStepAndAFreeEgosSteerAndPose) {
+  TempDir dir("cdtest-eval");
+  for (const std::string mode : {"free", "route"}) {
+    const std::string cfg = test::write_test_config(
+        dir, "regular", "\n[ego]\nlateral = \"" + mode + "\"\n", mode + ".toml");
+    std::vector<std::string> args = test::eval_args(cfg, "expert", "", "quickstart", dir / mode, 2);
+    args.push_back("--trace");
+    auto r = test::run_cli(args);
+    ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+    const nlohmann::json res = read_json(dir / (mode + "/results.json"));
+    const std::string text = test::read_text(dir / (mode + "/episodes/episode_000000.trace.csv"));
+    std::vector<std::vector<std::string>> rows;
+    std::stringstream lines(text);
+    for (std::string line; std::getline(lines, line);) {
+      std::vector<std::string> row;
+      std::stringstream fields(line);
+      for (std::string f; std::getline(fields, f, ',');) row.push_back(f);
+      rows.push_back(row);
+    }
+    ASSERT_GT(rows.size(), 10u) << text.substr(0, 500);
+    const std::vector<std::string>& head = rows[0];
+    auto col = [&](const std::string& name) {
+      return static_cast<int>(std::find(head.begin(), head.end(), name) - head.begin());
+    };
+    EXPECT_EQ(col("tl_state"), static_cast<int>(head.size()) - 1) << "causes last";
+    // One line per step of the episode after the prefill: its duration over dt (0.1 s).
+    EXPECT_NEAR(double(rows.size() - 1), res["episodes"][0]["duration_s"].get<double>() / 0.1, 1.5);
+    for (size_t i = 1; i < rows.size(); ++i) ASSERT_EQ(rows[i].size(), head.size()) << i;
+    if (mode == "route") {
+      EXPECT_EQ(col("steer"), static_cast<int>(head.size())) << "no steer column in route mode";
+      continue;
+    }
+    const int steer = col("steer"), x = col("x"), y = col("y"), speed = col("speed"),
+              lat = col("lateral_error_m");
+    ASSERT_EQ(steer, 6);
+    ASSERT_EQ(lat, 10);
+    double most = 0;
+    for (size_t i = 1; i + 1 < rows.size(); ++i) {
+      const double s = std::stod(rows[i][steer]);
+      EXPECT_LE(std::abs(s), 1.0);
+      most = std::max(most, std::abs(s));
+      EXPECT_LT(std::abs(std::stod(rows[i][lat])), 1.0) << "the expert keeps its lane";
+      // The next step's position: this speed to the next one over 0.1 s (m, 2 decimals).
+      const double moved = std::hypot(std::stod(rows[i + 1][x]) - std::stod(rows[i][x]),
+                                      std::stod(rows[i + 1][y]) - std::stod(rows[i][y]));
+      const double v0 = std::stod(rows[i][speed]), v1 = std::stod(rows[i + 1][speed]);
+      EXPECT_NEAR(moved, 0.05 * (v0 + v1), 0.02) << "step " << i;
+    }
+    EXPECT_GT(most, 0.05) << "the expert never steered";
+  }
 }
 
 TEST(BenchEval, SameSeedSameBytesWhateverTheWorkerCount) {
