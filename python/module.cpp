@@ -396,14 +396,12 @@ class CallableAgent : public Agent {
     d["bev"] = frames;
     d["speed"] = float_array({obs.speed});
     d["command"] = obs.command;
-    const std::vector<double> a =
-        free_ ? action_values(policy_(d), 3,
-                              "the policy must return (throttle, brake, steer) for a "
-                              "free-steering ego (ego.lateral = \"free\")")
-              : action_values(policy_(d), 2,
-                              "the policy must return (throttle, brake) (or a steer, ignored in "
-                              "route mode)",
-                              3);
+    const std::vector<double> a = action_values(
+        policy_(d), free_ ? 3 : 2,
+        free_ ? "the policy must return (throttle, brake, steer) for a free-steering ego "
+                "(ego.lateral = \"free\")"
+              : "the policy must return (throttle, brake) (or a steer, ignored in route mode)",
+        3);
     return Control{a[0], a[1], free_ ? a[2] : 0.0};
   }
 
