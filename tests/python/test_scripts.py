@@ -1,6 +1,7 @@
 """The reproduction scripts' command line (scripts/*_paper.sh, run_steps in paper_lib.sh):
 several steps run in order, an unknown step is refused before any step runs; kept_train keeps a
-finished run and copies a kept one back without training; suite_of generates suites of any size."""
+finished run and copies a kept one back without training; suite_of generates suites of any size;
+steering_summary.py condenses the kept csv files."""
 import json
 import os
 import subprocess
@@ -148,3 +149,61 @@ class SuiteOfTest(TempDirCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class SteeringSummaryTest(TempDirCase):
+    """scripts/steering_summary.py: the README's condensed steering tables from report csv files
+    written here by hand (the cells computed by hand)."""
+
+    HEADER = "label,suite,metric,mean,std,n\n"
+
+    def write(self, relative, rows):
+        path = os.path.join(self.dir, "results", relative)
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        with open(path, "w") as f:
+            f.write(self.HEADER + "".join(",".join(map(str, r)) + "\n" for r in rows))
+
+    def summary(self):
+        return subprocess.run(["python3", os.path.join(SOURCE, "scripts", "steering_summary.py"),
+                               os.path.join(self.dir, "results")],
+                              capture_output=True, text=True, timeout=60)
+
+    def test_cells_are_mean_and_sd_in_percent_free_beside_route(self):
+        self.write("cim_paper/table1.csv", [
+            ("dim", "town-a-regular-100", "paper_error_rate", 0.0788888888889, 0.0234125638952, 3),
+            ("dim", "town-a-regular-100", "success_rate", 0.877777777778, 0.0328858857488, 3)])
+        self.write("steering/cim/table1.csv", [
+            ("cs", "town-a-regular", "paper_error_rate", 0.64, "", 1),
+            ("cs", "town-a-regular", "offroad_rate", 0, "", 1),
+            ("cs", "town-a-regular", "success_rate", 0.32, "", 1),
+            ("cs", "town-a-stopgo", "start_delay_median_s", "", "", 0),  # no value: skipped
+            ("dim", "town-a-regular", "paper_error_rate", 0.16, 0.0565685, 2),
+            ("dim", "town-a-regular", "offroad_rate", 0.76, 0, 2),
+            ("dim", "town-a-regular", "success_rate", 0.02, 0.0282843, 2)])
+        self.write("residual_paper/table7.csv", [
+            ("bc-oh", "town-a-regular", "success_rate", 0, 0, 3),
+            ("bc-oh", "town-a-regular", "collision_rate", 0.0133333333333, 0.0230940107676, 3),
+            ("bc-oh", "town-a-regular", "inertia_rate", 0.613333333333, 0.0611010092661, 3)])
+        self.write("residual_paper/table9.csv", [])
+        self.write("steering/residual/dense.csv", [
+            ("bc-oh", "town-a-regular", "success_rate", 0.146666666667, 0.161658075373, 3),
+            ("bc-oh", "town-a-regular", "collision_rate", 0.333333333333, 0.271906, 3),
+            ("bc-oh", "town-a-regular", "inertia_rate", 0.32, 0.381576, 3),
+            ("bc-oh", "town-a-regular", "offroad_rate", 0, 0, 3)])
+        r = self.summary()
+        self.assertEqual(r.returncode, 0, r.stderr)
+        rows = {tuple(c.strip() for c in line.split("|")[1:3]): line.split("|")[3].strip()
+                for line in r.stdout.splitlines() if line.startswith("| ") and "mode" not in line}
+        self.assertEqual(rows[("cs", "free")], "64 / 0 (32)")  # one run: no sd
+        self.assertEqual(rows[("cs", "route")], "n/a (n/a)")   # not in the route csv
+        self.assertEqual(rows[("dim", "route")], "8 ± 2 (88)")
+        self.assertEqual(rows[("dim", "free")], "16 ± 6 / 76 ± 0 (2)")  # success: mean alone
+        self.assertEqual(rows[("bc-oh", "route")], "0 ± 0 / 1 ± 2 / 61 ± 6")
+        self.assertEqual(rows[("bc-oh", "free")], "15 ± 16 / 33 ± 27 / 32 ± 38 / 0 ± 0")
+        self.assertIn("seeds per free-mode row: [3]", r.stdout)
+
+    def test_a_missing_csv_is_one_line_and_exit_1(self):
+        r = self.summary()
+        self.assertEqual(r.returncode, 1)
+        self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+        self.assertRegex(r.stderr, r"^steering_summary\.py: .*cim_paper/table1\.csv")
