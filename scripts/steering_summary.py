@@ -46,15 +46,20 @@ def seeds(table, labels):
     return sorted({v[2] for k, v in table.items() if k[0] in labels})
 
 
+def print_head(route, free, methods, suites, column):
+    """A table's caption (the seed counts behind it) and markdown header, one column per suite."""
+    print(f"seeds per free-mode row: {seeds(free, methods)}; route mode: {seeds(route, methods)}\n")
+    print("| method | mode | " + " | ".join(s.replace("town-", "") for s in suites) + " |")
+    print("|---|---|" + column * len(suites))
+
+
 def table1(results):
     route = load(os.path.join(results, "cim_paper/table1.csv"))
     free = load(os.path.join(results, "steering/cim/table1.csv"))
     suites = ["town-a-regular", "town-a-dense", "town-a-stopgo",
               "town-b-regular", "town-b-dense", "town-b-stopgo"]
     methods = ["cs", "dim", "rip", "cim"]
-    print(f"seeds per free-mode row: {seeds(free, methods)}; route mode: {seeds(route, methods)}\n")
-    print("| method | mode | " + " | ".join(s.replace("town-", "") for s in suites) + " |")
-    print("|---|---|" + "---:|" * len(suites))
+    print_head(route, free, methods, suites, "---:|")
     for m in methods:
         cells = [f"{cell(route, m, s + '-100', 'paper_error_rate')} "
                  f"({cell(route, m, s + '-100', 'success_rate', sd=False)})" for s in suites]
@@ -70,9 +75,7 @@ def dense(results):
     free = load(os.path.join(results, "steering/residual/dense.csv"))
     suites = ["town-a-regular", "town-a-dense", "town-b-regular", "town-b-dense"]
     methods = ["bc-so", "bc-oh", "residual", "dagger", "hd", "fca", "keyframe"]
-    print(f"seeds per free-mode row: {seeds(free, methods)}; route mode: {seeds(route, methods)}\n")
-    print("| method | mode | " + " | ".join(s.replace("town-", "") for s in suites) + " |")
-    print("|---|---|" + "---|" * len(suites))
+    print_head(route, free, methods, suites, "---|")
     for m in methods:
         for mode, table, metrics in (
                 ("route", route, ["success_rate", "collision_rate", "inertia_rate"]),

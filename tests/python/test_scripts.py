@@ -147,10 +147,6 @@ class SuiteOfTest(TempDirCase):
         self.assertEqual((r.returncode, r.stdout.strip()), (0, "town-a-stopgo"), r.stderr)
 
 
-if __name__ == "__main__":
-    unittest.main()
-
-
 class SteeringSummaryTest(TempDirCase):
     """scripts/steering_summary.py: the README's condensed steering tables from report csv files
     written here by hand (the cells computed by hand)."""
@@ -207,3 +203,7 @@ class SteeringSummaryTest(TempDirCase):
         self.assertEqual(r.returncode, 1)
         self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
         self.assertRegex(r.stderr, r"^steering_summary\.py: .*cim_paper/table1\.csv")
+
+
+if __name__ == "__main__":
+    unittest.main()
