@@ -73,6 +73,7 @@ void visit_settings(S& st, V&& v) {
   v.number("collect", "min_route_m", st.collect.min_route_m, 0, 1e5);
   v.number("collect", "max_route_m", st.collect.max_route_m, 1, 1e5);
   v.number("collect", "max_episode_s", st.collect.max_episode_s, 0, 1e5);
+  v.number("collect", "hold_s", st.collect.hold_s, 0, 60);
   v.flag("collect.noise", "enabled", st.collect.noise.enabled);
   v.number("collect.noise", "rate_per_s", st.collect.noise.rate_per_s, 0, 10);
   v.number("collect.noise", "min_s", st.collect.noise.min_s, 0.1, 60);
@@ -114,6 +115,8 @@ void visit_settings(S& st, V&& v) {
   v.text("train", "device", st.train.device, {"cpu", "cuda", "auto"});
   v.integer("train", "max_samples", st.train.max_samples, 0, kMaxI64);
   v.integer("train", "epoch_samples", st.train.epoch_samples, 0, kMaxI64);
+  v.text("train", "situation_weights", st.train.situation_weights, {"none", "balanced"});
+  v.number("train", "situation_weight_max", st.train.situation_weight_max, 1, 1000);
   v.text("train", "out", st.train.out, {});
 
   v.text("eval", "suite", st.eval.suite, {});

@@ -45,6 +45,11 @@ struct CollectSettings {
   double min_route_m = 300;
   double max_route_m = 700;
   double max_episode_s = 0;  // 0: the benchmark timeout (route at 5 km/h + 20 s)
+  // s the ego is held braked at the start of an episode while the expert's labels (it wants to
+  // go) are recorded: the state eval's history prefill (eval.prefill_s) puts a policy in, a
+  // still history on a free road, with the expert's answer. Those steps are marked as not the
+  // expert's motion (noise mask 1). 0: the expert drives from the first step.
+  double hold_s = 0;
   NoiseSettings noise;
   AugmentSettings augment;
 };
@@ -70,6 +75,12 @@ struct TrainSettings {
   // each epoch, more take several shuffled passes, so that runs on folders of any size get the
   // same number of updates (the paper's fixed iteration count). Methods trained by train.epochs.
   long epoch_samples = 0;
+  // Per-sample weights of the action losses (driving data): "none", or "balanced": each
+  // training sample weighs N / (C n_c) for its situation class c (datasets/situation.hpp:
+  // the rare transitions, starting and stopping, as much in all as cruising), at most
+  // situation_weight_max, then scaled to a mean of 1 (coiltraine's balanced batches, as weights).
+  std::string situation_weights = "none";
+  double situation_weight_max = 10.0;
   std::string out = "runs/quickstart/train";
 };
 

@@ -11,6 +11,7 @@ void add_train(CLI::App& app);
 void add_eval(CLI::App& app);
 void add_suite(CLI::App& app);
 void add_probe(CLI::App& app);
+void add_diagnose(CLI::App& app);
 void add_attention(CLI::App& app);
 void add_report(CLI::App& app);
 void add_bench(CLI::App& app);

@@ -42,6 +42,7 @@ int main(int argc, char** argv) {
   cd::cli::add_eval(app);
   cd::cli::add_suite(app);
   cd::cli::add_probe(app);
+  cd::cli::add_diagnose(app);
   cd::cli::add_attention(app);
   cd::cli::add_granger(app);
   cd::cli::add_report(app);

@@ -1,6 +1,7 @@
 #include "collect/expert_episode.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 
@@ -114,6 +115,7 @@ EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, Epi
 
   Rng augment_rng(derive_seed(seed, 3));
   Rng* augment = settings_.collect.augment.fraction > 0 ? &augment_rng : nullptr;
+  const long hold_steps = driver ? 0 : std::lround(cs.hold_s / settings_.world.dt);
   StepResult r;
   while (r.outcome == Outcome::Running) {
     Control label = record_step(d, augment);
@@ -126,7 +128,9 @@ EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, Epi
     }
 
     Control executed = label;
-    if (driver) {
+    if (static_cast<long>(d.frames()) <= hold_steps) {
+      executed = Control{0.0, 1.0, label.steer};  // collect.hold_s: held like eval's prefill
+    } else if (driver) {
       executed = driver->drive(label);
     } else if (ns.enabled) {
       if (noise_left <= 0 && noise_rng.uniform() < ns.rate_per_s * settings_.world.dt) {

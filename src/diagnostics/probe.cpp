@@ -74,12 +74,7 @@ ProbeReport run_probe(const ProbeOptions& o) {
     throw ConfigError("the copycat probe needs a history policy such as bc-oh; " + o.checkpoint +
                       " holds '" + ck.method + "', which sees " + std::to_string(K) + " frame");
   EpisodeSet set = load_episode_set(o.data);
-  const InputFormat& in = ck.input;
-  if (set.channels != in.channels || set.height != in.height || set.width != in.width)
-    throw DataError("data in " + o.data + " has " + std::to_string(set.channels) + "x" +
-                    std::to_string(set.height) + "x" + std::to_string(set.width) +
-                    " BEV frames, the checkpoint was trained on " + std::to_string(in.channels) +
-                    "x" + std::to_string(in.height) + "x" + std::to_string(in.width));
+  require_same_frames(set, ck.input, o.data);
 
   ProbeReport r;
   r.checkpoint = o.checkpoint;

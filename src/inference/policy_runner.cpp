@@ -12,6 +12,14 @@ namespace cd {
 
 void set_torch_threads(int threads) { torch::set_num_threads(std::max(1, threads)); }
 
+void require_same_frames(const EpisodeSet& set, const InputFormat& in, const std::string& dir) {
+  if (set.channels != in.channels || set.height != in.height || set.width != in.width)
+    throw DataError("data in " + dir + " has " + std::to_string(set.channels) + "x" +
+                    std::to_string(set.height) + "x" + std::to_string(set.width) +
+                    " frames, the checkpoint was trained on " + std::to_string(in.channels) +
+                    "x" + std::to_string(in.height) + "x" + std::to_string(in.width));
+}
+
 struct PolicyRunner::Impl {
   Checkpoint ck;
   std::unique_ptr<PolicyNets> nets;

@@ -34,6 +34,11 @@ struct FeatureMapGradient {
   std::vector<float> gradient;    // dOutput/dA, same layout
 };
 
+struct EpisodeSet;
+// Throws DataError when the frames of a data folder (`set`, read from `dir`) differ in shape
+// from what checkpoint `in` was trained on (the open-loop diagnostics run a policy on them).
+void require_same_frames(const EpisodeSet& set, const InputFormat& in, const std::string& dir);
+
 // torch's intra-op threads for this process (closed loop: 1, one worker process per core).
 void set_torch_threads(int threads);
 

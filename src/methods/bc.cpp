@@ -19,7 +19,7 @@ class BcObjective : public Objective {
   BatchLoss loss(bool training, const uint32_t* rows, int64_t n) override {
     PolicyBatch b = c_.batcher.batch(training, rows, n);
     PolicyOutput out = c_.nets.policy->forward(b.image, b.speed_in, b.command, true);
-    return {policy_loss(c_.settings, out, b.action, b.speed_label), {}};
+    return {policy_loss(c_.settings, out, b.action, b.speed_label, sample_weights(b)), {}};
   }
 
  private:

@@ -40,7 +40,7 @@ FcaLosses fca_step(PolicyNets& nets, torch::optim::Optimizer& opt, const PolicyB
 
   // E + F step against the updated D, which stays as it is.
   clear_grads(all);
-  torch::Tensor p_loss = policy_loss(s, out, b.action, b.speed_label);
+  torch::Tensor p_loss = policy_loss(s, out, b.action, b.speed_label, sample_weights(b));
   torch::Tensor fooled = fca_adversary_loss(nets.adversary, out.embedding, b.action, prev);
   (p_loss - s.fca.adversary_weight * fooled).backward();
   clear_grads(adv);

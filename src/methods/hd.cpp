@@ -28,7 +28,7 @@ class HdObjective : public Objective {
     PolicyBatch b = c_.batcher.batch(training, rows, n);
     if (training) history_dropout(b.image, c_.data.episodes().channels, c_.settings.hd.p);
     PolicyOutput out = c_.nets.policy->forward(b.image, b.speed_in, b.command, true);
-    return {policy_loss(c_.settings, out, b.action, b.speed_label), {}};
+    return {policy_loss(c_.settings, out, b.action, b.speed_label, sample_weights(b)), {}};
   }
 
  private:

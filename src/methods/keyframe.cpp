@@ -146,7 +146,7 @@ class KeyframeObjective : public Objective {
   BatchLoss loss(bool training, const uint32_t* rows, int64_t n) override {
     PolicyBatch b = c_.batcher.batch(training, rows, n);
     PolicyOutput out = c_.nets.policy->forward(b.image, b.speed_in, b.command, true);
-    torch::Tensor w = training ? weights_.of(b) : torch::Tensor();
+    torch::Tensor w = sample_weights(b, training ? weights_.of(b) : torch::Tensor());
     return {policy_loss(c_.settings, out, b.action, b.speed_label, w), {}};
   }
 

@@ -14,6 +14,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/progress.hpp"
+#include "datasets/situation.hpp"
 #include "inference/policy_runner.hpp"
 #include "methods/method.hpp"
 #include "runs/checkpoint.hpp"
@@ -59,8 +60,11 @@ torch::Tensor PolicyBatch::current(int frame_channels) const {
   return image.narrow(1, image.size(1) - frame_channels, frame_channels);
 }
 
-PolicyBatcher::PolicyBatcher(const Dataset& data, int B, const torch::Device& device)
+PolicyBatcher::PolicyBatcher(const Dataset& data, int B, const torch::Device& device,
+                             const std::vector<float>& train_weights)
     : data_(data), device_(device) {
+  if (!train_weights.empty())
+    train_weights_ = torch::tensor(train_weights, torch::kFloat32).to(device);
   auto f = torch::TensorOptions().dtype(torch::kFloat32);
   auto i64 = torch::TensorOptions().dtype(torch::kInt64);
   const EpisodeSet& eps = data.episodes();
@@ -102,7 +106,31 @@ PolicyBatch PolicyBatcher::batch(bool training, const uint32_t* rows, int64_t n)
   b.speed_label = on(speed_label_);
   if (L > 0) b.previous = on(previous_);
   b.rows = on(rows_);
+  if (training && train_weights_.defined()) b.weight = train_weights_.index_select(0, b.rows);
   return b;
+}
+
+torch::Tensor sample_weights(const PolicyBatch& batch, const torch::Tensor& own) {
+  if (!batch.weight.defined()) return own;
+  if (!own.defined()) return batch.weight;
+  return own.dim() == 2 ? own * batch.weight.unsqueeze(1) : own * batch.weight;
+}
+
+std::vector<float> situation_weights(const Settings& s, const Dataset& data) {
+  if (s.train.situation_weights == "none") return {};
+  const EpisodeSet& eps = data.episodes();
+  if (eps.domain != kDrivingDomain)
+    throw ConfigError("train.situation_weights = \"" + s.train.situation_weights +
+                      "\" needs driving data; " + eps.dir + " holds " + eps.domain + " data");
+  std::vector<int> classes;
+  classes.reserve(data.train().size());
+  try {
+    for (const SampleRef& r : data.train())
+      classes.push_back(situation_class(situations_at(eps.episodes[r.episode], r.t, eps.dt)));
+  } catch (const DataError& e) {
+    throw ConfigError(std::string("train.situation_weights: ") + e.what());
+  }
+  return balanced_weights(classes, s.train.situation_weight_max);
 }
 
 torch::Tensor action_loss(const std::string& kind, const torch::Tensor& pred,
@@ -219,7 +247,7 @@ TrainSummary train_policy_family(const Settings& settings_in, const TrainRequest
   }
 
   const int epochs = s.train.epochs;
-  PolicyBatcher batcher(data, s.train.batch_size, dev.device);
+  PolicyBatcher batcher(data, s.train.batch_size, dev.device, situation_weights(s, data));
   FamilyContext ctx{s, data, nets, batcher, dev.device, req.quiet};
   json record = ck.method_record;
   std::unique_ptr<Objective> objective = method.objective(ctx, record);

@@ -34,6 +34,9 @@ struct PolicyBatch {
   torch::Tensor speed_label;  // n x 1
   torch::Tensor previous;     // n x L x A: a_{t-1} .. a_{t-L}; undefined when L = 0
   torch::Tensor rows;         // n, int64: the samples' indices in their split
+  // n: the samples' situation weights (train.situation_weights) in a training batch; undefined
+  // when they are off and in validation batches (the validation loss stays unweighted).
+  torch::Tensor weight;
   // The current frame: the last C planes of image.
   torch::Tensor current(int frame_channels) const;
 };
@@ -42,7 +45,9 @@ struct PolicyBatch {
 // writes its own rows, so the result does not depend on the thread count).
 class PolicyBatcher {
  public:
-  PolicyBatcher(const Dataset& data, int batch_size, const torch::Device& device);
+  // train_weights: one weight per training sample (train.situation_weights), or empty.
+  PolicyBatcher(const Dataset& data, int batch_size, const torch::Device& device,
+                const std::vector<float>& train_weights = {});
   PolicyBatch batch(bool training, const uint32_t* rows, int64_t n);
   const Dataset& data() const { return data_; }
 
@@ -50,7 +55,16 @@ class PolicyBatcher {
   const Dataset& data_;
   torch::Device device_;
   torch::Tensor image_, speed_in_, command_, action_, speed_label_, previous_, rows_;
+  torch::Tensor train_weights_;  // N_train on the device, or undefined
 };
+
+// A method's own per-sample weights (n, or n x A; undefined for none) times the batch's
+// situation weights: what its action loss is weighted with.
+torch::Tensor sample_weights(const PolicyBatch& batch, const torch::Tensor& own = {});
+
+// train.situation_weights = "balanced": the weight of each training sample of `data`
+// (datasets/situation.hpp); empty for "none". Throws ConfigError for data without the causes.
+std::vector<float> situation_weights(const Settings& s, const Dataset& data);
 
 // Mean L1 or L2 (train.loss) of pred - target; with `weights` (n), each sample's mean over
 // its components is weighted, and the sum is divided by n.

@@ -33,7 +33,7 @@ ResidualLosses residual_losses(PolicyNets& nets, const PolicyBatch& b, const Set
   PolicyOutput mem = nets.memory->forward(b.image, b.speed_in, b.command, true);
   torch::Tensor target = memory_targets(l.memory_target, b.action, b.previous, l.memory_heads);
   ResidualLosses out;
-  out.memory = policy_loss(s, mem, target, b.speed_label);
+  out.memory = policy_loss(s, mem, target, b.speed_label, sample_weights(b));
   const torch::Tensor feature = mem.feature.detach();
   if (nets.policy) {
     torch::Tensor in = l.policy_sees_history ? b.image : b.current(frame_channels);
@@ -58,7 +58,7 @@ class ResidualObjective : public Objective {
 
   BatchLoss loss(bool training, const uint32_t* rows, int64_t n) override {
     PolicyBatch b = c_.batcher.batch(training, rows, n);
-    torch::Tensor w = training && weights_ ? weights_->of(b) : torch::Tensor();
+    torch::Tensor w = sample_weights(b, training && weights_ ? weights_->of(b) : torch::Tensor());
     ResidualLosses l = residual_losses(c_.nets, b, c_.settings, c_.data.episodes().channels, w);
     return {l.memory + l.act, {l.memory, l.act}};
   }

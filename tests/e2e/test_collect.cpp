@@ -303,3 +303,32 @@ TEST(Collect, PngFramesAreWritten) {
 
 }  // namespace
 }  // namespace cd
+
+namespace cd {
+namespace {
+
+// collect.hold_s: the ego stands braked for the first steps while the expert's labels (go) are
+// recorded and marked as not its motion; then the expert drives as without the hold.
+TEST(Collect, HoldKeepsTheEgoStillWithTheExpertsLabels) {
+  TempDir dir("cdtest-collect-hold");
+  const std::string config =
+      test::write_test_config(dir, "empty", std::string("max_episode_s = 8\nhold_s = 1.0\n") + kRouteMode);
+  const std::string out = dir / "data";
+  CommandResult r = collect_cli(config, out, 1, 1);
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  EpisodeData d = read_episode(out + "/" + episode_file_name(0));
+  ASSERT_GT(d.frames(), 30u);
+  // Steps 0..9 (1 s at 0.1 s) execute the brake: the ego has not moved by step 10, and the
+  // expert's label is to go (full throttle from a standstill).
+  for (size_t t = 0; t <= 10; ++t) EXPECT_EQ(d.speed[t], 0.0f) << "step " << t;
+  for (size_t t = 0; t < 10; ++t) {
+    EXPECT_EQ(d.noise[t], 1) << "step " << t;
+    EXPECT_GT(d.action[2 * t], 0.5f) << "step " << t << ": the label is not to go";
+    EXPECT_EQ(d.action[2 * t + 1], 0.0f) << "step " << t;
+  }
+  EXPECT_EQ(d.noise[10], 0);
+  EXPECT_GT(d.speed[11], 0.0f) << "the expert did not start after the hold";
+}
+
+}  // namespace
+}  // namespace cd

@@ -208,3 +208,62 @@ TEST(ProbeCli, ReportsTheHistoryEffect) {
 
 }  // namespace
 }  // namespace cd
+
+namespace cd {
+namespace {
+
+TEST(DiagnoseCli, ComparesThePolicyWithTheLabelsSituationBySituation) {
+  test::TempDir dir{"cd-diagnose-cli"};
+  const std::string config = dir / "learn.toml", data = dir / "data", plain = dir / "plain";
+  test::write_text(config, test::learn_config_toml(1));
+  test::write_fake_folder(data, 3, {.frames = 40, .situation_causes = true});
+  test::write_fake_folder(plain, 3, {.frames = 40});
+  const std::string oh = dir / "oh";
+  ASSERT_EQ(test::run_cli(train_args(config, "bc-oh", data, oh)).exit_code, 0);
+
+  const std::string plots = dir / "plots";
+  CommandResult r = test::run_cli(
+      {"diagnose", "--checkpoint", oh, "--data", data, "--json", "--plots", plots});
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  json j = json::parse(r.out);
+  EXPECT_EQ(j["method"], "bc-oh");
+  EXPECT_EQ(j["split"], "val");
+  // One validation episode of 40 frames; history 3, stride 2: t = 4 .. 39.
+  EXPECT_EQ(j["frames"], 36);
+  EXPECT_EQ(j["components"], json({"throttle", "brake"}));
+  const json& all = j["situations"]["all"];
+  EXPECT_EQ(all["count"], 36);
+  // The throttle label is t / 1000: mean (4 + 39) / 2000.
+  EXPECT_NEAR(all["throttle"]["label_mean"].get<double>(), 0.0215, 1e-6);
+  // Standing (speed 0.25 (t % 20) < 0.5): t = 20, 21, both 5 m before a red light (t % 20 < 5).
+  EXPECT_EQ(j["situations"]["standing_blocked"]["count"], 2);
+  EXPECT_EQ(j["situations"]["standing_free"]["count"], 0);
+  for (const char* s : {"starting", "cruising", "slowing_red", "following"})
+    EXPECT_TRUE(j["situations"].contains(s)) << s;
+  const auto pngs = test::list_dir(plots);
+  ASSERT_EQ(pngs.size(), 1u);  // the one validation episode
+  EXPECT_TRUE(test::ends_with(pngs[0], ".png"));
+
+  CommandResult every =
+      test::run_cli({"diagnose", "--checkpoint", oh, "--data", data, "--split", "all", "--json"});
+  ASSERT_EQ(every.exit_code, 0) << every.describe();
+  EXPECT_EQ(json::parse(every.out)["frames"], 3 * 36);
+  CommandResult table = test::run_cli({"diagnose", "--checkpoint", oh, "--data", data});
+  ASSERT_EQ(table.exit_code, 0) << table.describe();
+  EXPECT_NE(table.out.find("standing_blocked"), std::string::npos) << table.out;
+
+  expect_one_line_error(
+      test::run_cli({"diagnose", "--checkpoint", oh, "--data", plain, "--split", "val"}),
+      "is not the data folder");
+  expect_one_line_error(
+      test::run_cli({"diagnose", "--checkpoint", oh, "--data", plain, "--split", "all"}),
+      "has no causes/");
+  expect_one_line_error(test::run_cli({"diagnose", "--checkpoint", oh, "--data", data, "--plots",
+                                       plots, "--plot-episodes", "7"}),
+                        "episode 7 is not in");
+  expect_one_line_error(test::run_cli({"diagnose", "--checkpoint", dir / "none", "--data", data}),
+                        "none");
+}
+
+}  // namespace
+}  // namespace cd

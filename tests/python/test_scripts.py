@@ -1,7 +1,7 @@
 """The reproduction scripts' command line (scripts/*_paper.sh, run_steps in paper_lib.sh):
 several steps run in order, an unknown step is refused before any step runs; kept_train keeps a
 finished run and copies a kept one back without training; suite_of generates suites of any size;
-steering_summary.py condenses the kept csv files."""
+steering_summary.py condenses the kept csv files; config_variant.py sets keys of a config."""
 import json
 import os
 import subprocess
@@ -203,6 +203,41 @@ class SteeringSummaryTest(TempDirCase):
         self.assertEqual(r.returncode, 1)
         self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
         self.assertRegex(r.stderr, r"^steering_summary\.py: .*cim_paper/table1\.csv")
+
+
+class ConfigVariantTest(TempDirCase):
+    """scripts/config_variant.py: BASE with keys set, read back by tomllib (the oracle)."""
+
+    def variant(self, *overrides):
+        base = os.path.join(self.dir, "base.toml")
+        with open(base, "w") as f:
+            f.write('# a comment\n[world]\ntown = "town-a"\n\n[train]\nepochs = 8\n'
+                    'lr = 2e-4\n\n[collect]\nepisodes = 3\n\n[collect.noise]\n'
+                    'enabled = true\n')
+        out = os.path.join(self.dir, "out.toml")
+        r = subprocess.run([os.path.join(SOURCE, "scripts", "config_variant.py"), base, out,
+                            *overrides], capture_output=True, text=True, timeout=60)
+        return r, out
+
+    def test_overrides_replace_add_and_keep_the_rest(self):
+        import tomllib
+        r, out = self.variant("train.epochs=24", "train.situation_weights=balanced",
+                              "collect.noise.enabled=false", "model.speed_input=true")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(out, "rb") as f:
+            got = tomllib.load(f)
+        self.assertEqual(got, {"world": {"town": "town-a"},
+                               "train": {"epochs": 24, "lr": 2e-4,
+                                         "situation_weights": "balanced"},
+                               "collect": {"episodes": 3, "noise": {"enabled": False}},
+                               "model": {"speed_input": True}})
+
+    def test_a_malformed_override_is_one_line_and_exit_1(self):
+        r, out = self.variant("epochs24")
+        self.assertEqual(r.returncode, 1)
+        self.assertEqual(r.stderr.strip().splitlines(),
+                         ["error: override 'epochs24' is not TABLE.KEY=VALUE"])
+        self.assertFalse(os.path.exists(out))
 
 
 if __name__ == "__main__":

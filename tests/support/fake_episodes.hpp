@@ -15,6 +15,9 @@ struct FakeEpisodeSpec {
   int frames = 40;
   int channels = 8, height = 32, width = 32;
   bool packed = false;  // store frames as bev_packed (as the recorder does) instead of planes
+  // Also the causes the imitation diagnosis reads: a red light 5 m ahead for t % 20 < 5
+  // (tl_state 1, else none: 0), a leader 20 m ahead on t % 3 == 0.
+  bool situation_causes = false;
 };
 
 // Channel 0, row 0: pixel i is on iff bit i of t is set; channel 1, row 0: bits of the episode
@@ -46,6 +49,13 @@ inline EpisodeData fake_episode(int episode, const FakeEpisodeSpec& spec) {
     d.command.push_back(t % 4);
     d.pose.insert(d.pose.end(), {static_cast<float>(t), 0.0f, 0.0f});
     d.causes["path_free"].push_back(t % 2 == 0 ? 1.0f : 0.0f);
+    if (spec.situation_causes) {
+      const bool red = t % 20 < 5, lead = t % 3 == 0;
+      d.causes["tl_state"].push_back(red ? 1.0f : 0.0f);
+      d.causes["tl_distance"].push_back(red ? 5.0f : 100.0f);
+      d.causes["lead_present"].push_back(lead ? 1.0f : 0.0f);
+      d.causes["lead_distance"].push_back(lead ? 20.0f : 100.0f);
+    }
   }
   if (spec.packed) {
     d.bev_packed.assign(static_cast<size_t>(spec.frames) * pixels, 0);
