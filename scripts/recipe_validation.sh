@@ -45,6 +45,8 @@ VARIANTS=(
   "balanced|train.situation_weights=balanced"
   "hold|collect.hold_s=1.0"
   "hold-balanced|collect.hold_s=1.0 train.situation_weights=balanced"
+  "signed|model.pedals=signed"
+  "signed-hold-balanced|model.pedals=signed collect.hold_s=1.0 train.situation_weights=balanced"
 )
 
 overrides_of() {  # LABEL -> its overrides

@@ -29,6 +29,7 @@ void visit_settings(S& st, V&& v) {
   v.number("world", "vehicle_margin", st.world.vehicle_margin, 0, 5);
   v.number("world", "ped_margin", st.world.ped_margin, 0, 5);
   v.number("world", "ped_lookahead_s", st.world.ped_lookahead_s, 0, 10);
+  v.number("world", "ped_ahead_m", st.world.ped_ahead_m, 0, 100);
   v.number("world", "yield_time", st.world.yield_time, 0, 30);
   auto density = [&](const char* table, auto& d) {
     v.number(table, "cars_per_km", d.cars_per_km, 0, 200);
@@ -95,6 +96,7 @@ void visit_settings(S& st, V&& v) {
   v.integer("model", "history", st.model.history, 1, 64);
   v.integer("model", "history_stride", st.model.history_stride, 1, 100);
   v.text("model", "action_head", st.model.action_head, {"throttle_brake", "target_speed"});
+  v.text("model", "pedals", st.model.pedals, {"two", "signed"});
   v.flag("model", "speed_input", st.model.speed_input);
   v.integer("model", "features", st.model.features, 8, 4096);
   v.number("model", "speed_loss_weight", st.model.speed_loss_weight, 0, 100);

@@ -5,6 +5,7 @@
 
 #include "core/error.hpp"
 #include "core/rng.hpp"
+#include "nn/model_settings.hpp"
 
 namespace cd {
 
@@ -25,6 +26,9 @@ Dataset::Dataset(EpisodeSet episodes, const DatasetOptions& options)
                       "(model.action_head = \"throttle_brake\")");
   if (opt_.action_head != "throttle_brake" && opt_.action_head != "target_speed")
     throw ConfigError("unknown action head '" + opt_.action_head + "'");
+  if (opt_.signed_pedals && (set_.domain != kDrivingDomain || set_.action_dim < 2))
+    throw ConfigError("model.pedals = \"signed\" learns driving's throttle - brake; " + set_.dir +
+                      " holds " + set_.domain + " data");
   const int n = static_cast<int>(set_.episodes.size());
   val_episodes_ = choose_val_episodes(n, opt_.val_fraction, opt_.seed);
   // The target-speed label of step t is speed[t+1]: the last step has none, and a step whose
@@ -63,15 +67,23 @@ void Dataset::fill(const SampleRef& s, const SampleView& out) const {
   }
   *out.speed_input = opt_.speed_input ? ep.speed[s.t] : 0.0f;
   *out.command = ep.command[s.t];
-  const size_t A = static_cast<size_t>(set_.action_dim);
   if (opt_.action_head == "throttle_brake") {
-    std::copy_n(ep.action.data() + A * s.t, A, out.action);
+    action_at(s.episode, s.t, out.action);
   } else {
     out.action[0] = ep.speed[s.t + 1];
   }
   *out.speed_label = ep.speed[s.t];
-  for (int i = 1; i <= opt_.action_lags; ++i)
-    std::copy_n(ep.action.data() + A * (s.t - i), A, out.previous + A * (i - 1));
+  const size_t A = static_cast<size_t>(action_dim());
+  for (int i = 1; i <= opt_.action_lags; ++i) action_at(s.episode, s.t - i, out.previous + A * (i - 1));
+}
+
+void Dataset::action_at(int e, int t, float* out) const {
+  const size_t A = static_cast<size_t>(set_.action_dim);
+  const float* a = set_.episodes[e].action.data() + A * t;
+  if (opt_.signed_pedals)
+    pedals_to_learned(a, set_.action_dim, out);
+  else
+    std::copy_n(a, A, out);
 }
 
 }  // namespace cd

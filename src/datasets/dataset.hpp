@@ -29,6 +29,9 @@ struct DatasetOptions {
   uint64_t seed = 0;                           // validation split and max_samples subset
   long max_samples = 0;                        // > 0: keep this many samples (both splits)
   int action_lags = 0;                         // L: previous recorded actions per sample
+  // model.pedals = "signed": actions (label and previous) as throttle - brake[, steer]
+  // (nn/model_settings.hpp); driving data only.
+  bool signed_pedals = false;
 };
 
 // One sample's tensors, as flat arrays the trainer copies into a batch.
@@ -48,7 +51,13 @@ class Dataset {
   const EpisodeSet& episodes() const { return set_; }
   const DatasetOptions& options() const { return opt_; }
   int input_channels() const { return opt_.history * set_.channels; }
-  int action_dim() const { return opt_.action_head == "throttle_brake" ? set_.action_dim : 1; }
+  // Components of a label as learned (a target speed: 1; signed pedals: one fewer than recorded).
+  int action_dim() const {
+    if (opt_.action_head != "throttle_brake") return 1;
+    return opt_.signed_pedals ? set_.action_dim - 1 : set_.action_dim;
+  }
+  // The recorded action of step t of episode e as learned (action_dim() values).
+  void action_at(int e, int t, float* out) const;
   size_t image_values() const { return static_cast<size_t>(opt_.history) * set_.frame_values(); }
   int first_step() const {  // first valid t
     return std::max((opt_.history - 1) * opt_.stride, opt_.action_lags);

@@ -125,9 +125,13 @@ torch::Tensor PolicyRunner::Impl::act(const float* previous, torch::Tensor* feat
     if (nets->controller) {
       a = nets->control(memory_feature);
     } else {
-      // Memory only, residual controller: a_t = a_{t-1} + the predicted a_t - a_{t-1} (head 1).
+      // Memory only, residual controller: a_t = a_{t-1} + the predicted a_t - a_{t-1} (head 1),
+      // in the space the action is learned in (model.pedals).
       torch::Tensor prev = torch::zeros({1, l.action_dim});
-      if (previous) std::copy_n(previous, l.action_dim, prev.data_ptr<float>());
+      if (previous && signed_pedals(ck.model, ck.input.domain))
+        pedals_to_learned(previous, ck.input.action_dim, prev.data_ptr<float>());
+      else if (previous)
+        std::copy_n(previous, l.action_dim, prev.data_ptr<float>());
       a = prev + mem.action.narrow(1, 0, l.action_dim);
     }
   }
@@ -138,13 +142,20 @@ PolicyStep PolicyRunner::Impl::step(torch::Tensor a, bool target_speed_head) {
   a = a.detach().contiguous();
   const float* v = a.data_ptr<float>();
   action.assign(v, v + a.size(1));
+  if (!target_speed_head && signed_pedals(ck.model, ck.input.domain)) {
+    // throttle - brake[, steer] -> throttle, brake[, steer]
+    std::vector<float> learned = action;
+    action.resize(static_cast<size_t>(ck.input.action_dim));
+    pedals_to_recorded(learned.data(), ck.input.action_dim, action.data());
+    v = action.data();
+  }
   PolicyStep s;
   if (target_speed_head) {
     s.target_speed = std::max(0.0f, v[0]);
   } else if (ck.input.domain != kMujocoDomain) {  // MuJoCo: last_action() is the action
     s.throttle = std::clamp(v[0], 0.0f, 1.0f);
     s.brake = std::clamp(v[1], 0.0f, 1.0f);
-    if (a.size(1) >= 3) s.steer = std::clamp(v[2], -1.0f, 1.0f);
+    if (action.size() >= 3) s.steer = std::clamp(v[2], -1.0f, 1.0f);
   }
   return s;
 }
@@ -165,8 +176,11 @@ PolicyStep PolicyRunner::run_with_gradient(const uint8_t* const* frames, double 
   torch::AutoGradMode grad_on(true);
   torch::Tensor map;
   torch::Tensor a = m.act(previous, &map, &out.module);
-  // The head's output as one number, unclamped: the target speed, or throttle - brake.
-  torch::Tensor scalar = target_speed_head() ? a.select(1, 0) : a.select(1, 0) - a.select(1, 1);
+  // The head's output as one number, unclamped: the target speed, or throttle - brake (signed
+  // pedals: their one value).
+  torch::Tensor scalar = target_speed_head() || signed_pedals(m.ck.model, m.ck.input.domain)
+                             ? a.select(1, 0)
+                             : a.select(1, 0) - a.select(1, 1);
   torch::Tensor g = torch::autograd::grad({scalar.sum()}, {map}, {}, /*retain_graph=*/false,
                                           /*create_graph=*/false, /*allow_unused=*/true)[0];
   if (!g.defined()) g = torch::zeros_like(map);

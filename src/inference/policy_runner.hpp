@@ -68,7 +68,8 @@ class PolicyRunner {
   // run() that also fills `out` (autograd on, so slower than run(); the same action).
   PolicyStep run_with_gradient(const uint8_t* const* frames, double speed, int command,
                                const float* previous, FeatureMapGradient& out);
-  // The action components of the last run() (A values; the target speed for that head).
+  // The action components of the last run() (A values as recorded: throttle, brake[, steer]
+  // also for signed pedals, decoded; MuJoCo's action; the target speed for that head).
   const std::vector<float>& last_action() const;
 
  private:

@@ -25,17 +25,15 @@ struct ApeData {
 };
 
 ApeData ape_data(const Dataset& data, const std::vector<SampleRef>& samples, int L) {
-  const EpisodeSet& eps = data.episodes();
-  const int A = eps.action_dim;
+  const int A = data.action_dim();  // as learned (model.pedals)
   const int64_t n = static_cast<int64_t>(samples.size());
   ApeData d{torch::empty({n, L * A}), torch::empty({n, A})};
   float* x = d.x.data_ptr<float>();
   float* y = d.y.data_ptr<float>();
   for (int64_t i = 0; i < n; ++i) {
-    const std::vector<float>& act = eps.episodes[samples[i].episode].action;
-    const size_t t = static_cast<size_t>(samples[i].t);
-    std::copy_n(act.data() + A * t, A, y + i * A);
-    for (int l = 1; l <= L; ++l) std::copy_n(act.data() + A * (t - l), A, x + (i * L + l - 1) * A);
+    const int e = samples[i].episode, t = samples[i].t;
+    data.action_at(e, t, y + i * A);
+    for (int l = 1; l <= L; ++l) data.action_at(e, t - l, x + (i * L + l - 1) * A);
   }
   return d;
 }
@@ -79,7 +77,7 @@ torch::Tensor keyframe_softmax_weights(const torch::Tensor& ape, double temperat
 KeyframeWeights::KeyframeWeights(FamilyContext& c, nlohmann::json& record) : s_(c.settings) {
   const KeyframeSettings& k = s_.keyframe;
   const Dataset& data = c.data;
-  const int A = data.episodes().action_dim, L = k.actions;
+  const int A = data.action_dim(), L = k.actions;
   const ApeData train = ape_data(data, data.train(), L), val = ape_data(data, data.val(), L);
 
   // Trained on the CPU from its own stream of train.seed, whatever the policy's device.

@@ -190,6 +190,7 @@ TrainSummary train_policy_family(const Settings& settings_in, const TrainRequest
   dopt.seed = s.train.seed;
   dopt.max_samples = s.train.max_samples;
   dopt.action_lags = method.action_lags(s);
+  dopt.signed_pedals = s.model.pedals == "signed" && s.model.action_head == "throttle_brake";
   Dataset data(load_episode_set(dirs), dopt);
   const EpisodeSet& eps = data.episodes();
   const PolicyNetsLayout layout = layout_for(req.method, s, eps);
@@ -223,7 +224,7 @@ TrainSummary train_policy_family(const Settings& settings_in, const TrainRequest
               eps.action_dim,     eps.dt,     eps.metres_per_pixel, eps.channel_names,
               eps.domain,         eps.env,    ""};
   // Recorded where the squash is not driving's (throttle, brake) sigmoid (InputFormat).
-  if (eps.domain != "driving" || eps.action_dim != 2) ck.input.action_output = layout.action_output;
+  if (layout.action_output != "sigmoid") ck.input.action_output = layout.action_output;
 
   fs::create_directories(out);
   settle_pending_files(out, ck.epochs_done);

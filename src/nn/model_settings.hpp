@@ -15,11 +15,34 @@ struct ModelSettings {
   int history = 4;                 // frames stacked by bc-oh (bc-so: 1)
   int history_stride = 2;          // simulation steps between stacked frames
   std::string action_head = "throttle_brake";  // throttle_brake | target_speed
+  // How a throttle_brake head learns driving's throttle and brake: "two" (as recorded, two
+  // sigmoids) or "signed" (one value throttle - brake in [-1, 1], tanh: the seeds' public code's
+  // throttle_brake; a policy can then never press both, and standing's brake label -0.3 is
+  // inside the squash's range, not at a saturated end). Steer, when recorded, follows it.
+  std::string pedals = "two";
   bool speed_input = false;        // false: the measured speed is zeroed (the seeds' POMDP)
   int features = 256;              // width of the backbone's output and the branches
   double speed_loss_weight = 0.05; // auxiliary speed-prediction head
   double dropout = 0.2;
 };
+
+// model.pedals = "signed" applies to driving data learned through a throttle_brake head.
+inline bool signed_pedals(const ModelSettings& m, const std::string& domain) {
+  return m.pedals == "signed" && m.action_head == "throttle_brake" && domain == "driving";
+}
+// A recorded driving action (throttle, brake[, steer]) as a signed-pedals policy learns it
+// (throttle - brake[, steer]), and back (throttle = max(v, 0), brake = max(-v, 0)).
+// `recorded_dim` counts the recorded components (>= 2).
+inline void pedals_to_learned(const float* recorded, int recorded_dim, float* learned) {
+  learned[0] = recorded[0] - recorded[1];
+  for (int i = 2; i < recorded_dim; ++i) learned[i - 1] = recorded[i];
+}
+inline void pedals_to_recorded(const float* learned, int recorded_dim, float* recorded) {
+  const float v = learned[0];
+  for (int i = recorded_dim - 1; i >= 2; --i) recorded[i] = learned[i - 1];
+  recorded[0] = v > 0 ? v : 0.0f;
+  recorded[1] = v < 0 ? -v : 0.0f;
+}
 
 // Perception model of the cim family (seed 000 section 5.4.2): a beta-VAE on one grey BEV view.
 struct VaeSettings {

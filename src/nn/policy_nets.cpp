@@ -22,13 +22,15 @@ PolicyNetsLayout policy_layout(const std::string& method, const ModelSettings& m
                                const std::string& domain) {
   PolicyNetsLayout l;
   l.method = method;
+  const bool pedals = signed_pedals(model, domain);
+  if (pedals) action_dim -= 1;  // throttle - brake[, steer]
   l.action_dim = action_dim;
   l.history = model.history;
   if (model.action_head == "target_speed" && domain == "mujoco")
     throw ConfigError("MuJoCo-Image data has no speed: set model.action_head = \"throttle_brake\" "
                       "(the recorded action)");
   l.action_output = model.action_head == "target_speed" ? "softplus"
-                    : domain == "mujoco"                ? "tanh"
+                    : domain == "mujoco" || pedals      ? "tanh"
                     : action_dim == 3                   ? "sigmoid_tanh"
                                                         : "sigmoid";
   l.policy = policy_net_options(model, model.history * frame_channels, height, width);

@@ -24,7 +24,7 @@ namespace cd {
 
 struct PolicyNetsLayout {
   std::string method;
-  int action_dim = 2;           // A
+  int action_dim = 2;           // A: learned components (signed pedals: one fewer than recorded)
   int history = 1;              // frames of the history input
   bool has_policy = true;       // false: residual memory-only controllers
   PolicyNetOptions policy;
@@ -38,13 +38,13 @@ struct PolicyNetsLayout {
   bool has_controller = false;
   // The squash of an action (policy, an action-predicting memory module and the controller;
   // squash_action): sigmoid for driving's throttle and brake in [0,1], sigmoid_tanh when a steer
-  // in [-1,1] follows them, tanh for MuJoCo-Image's actions in [-1,1], softplus for a target
-  // speed.
+  // in [-1,1] follows them, tanh for MuJoCo-Image's actions in [-1,1] and for signed pedals
+  // (throttle - brake[, steer]), softplus for a target speed.
   std::string action_output = "sigmoid";
 };
 
 // The layout of `method` for frames of `frame_channels` x height x width, `action_dim`
-// components, data of `domain` (driving | mujoco: the action squash) (ConfigError for a setting
+// recorded components, data of `domain` (driving | mujoco: the action squash) (ConfigError for a setting
 // the method cannot have).
 PolicyNetsLayout policy_layout(const std::string& method, const ModelSettings& model,
                                const ResidualSettings& residual, const FcaSettings& fca,

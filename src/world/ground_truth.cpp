@@ -67,7 +67,9 @@ TruthStep compute_ground_truth(const TruthInputs& in) {
     double s_min = 1e300;
     double hw = half_body + (a.pedestrian ? ws.ped_margin : ws.vehicle_margin);
     // Nothing of this actor can be near the path: skip the per-segment tests.
-    const double reach = hw + (a.box.length + a.box.width) / 2 + a.speed * ws.ped_lookahead_s;
+    // (A pedestrian may also be in the corridor straight ahead of the ego, off the path.)
+    const double reach = hw + (a.box.length + a.box.width) / 2 + a.speed * ws.ped_lookahead_s +
+                         (a.pedestrian ? ws.ped_ahead_m + in.ego_length : 0.0);
     if (a.box.center.x < path.min.x - reach || a.box.center.x > path.max.x + reach ||
         a.box.center.y < path.min.y - reach || a.box.center.y > path.max.y + reach)
       continue;
@@ -79,7 +81,17 @@ TruthStep compute_ground_truth(const TruthInputs& in) {
     test(a.box.center);
     if (a.pedestrian) {
       Vec2 dir{std::cos(a.box.heading), std::sin(a.box.heading)};
-      test(a.box.center + dir * (a.speed * ws.ped_lookahead_s));
+      const Vec2 ahead = a.box.center + dir * (a.speed * ws.ped_lookahead_s);
+      test(ahead);
+      // The corridor straight ahead of the ego's own body, wherever the path runs: as far as
+      // it drives in ped_lookahead_s, plus 1 m, at most ped_ahead_m.
+      const double corridor = std::min(ws.ped_ahead_m, 1.0 + in.ego_speed * ws.ped_lookahead_s);
+      for (Vec2 p : {a.box.center, ahead}) {
+        const Vec2 e = to_ego_frame(in.ego_pose, p);
+        const double front = e.x - in.ego_length / 2;
+        if (front >= -in.ego_length && front <= corridor && std::abs(e.y) <= hw)
+          s_min = std::min(s_min, std::max(0.0, front));
+      }
     } else {
       for (const Vec2& c : corners) test(c);
     }

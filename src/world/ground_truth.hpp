@@ -71,6 +71,7 @@ struct TruthInputs {
   std::function<char(const ViaInfo&)> link_state;
   // Must a car about to use this internal lane wait (minor: the ego's link has no priority)?
   std::function<bool(const std::string& lane, bool minor)> junction_lane_blocked;
+  double ego_length = 4.5;  // ego_pose is the box centre; its front is length / 2 ahead
 };
 
 struct TruthStep {

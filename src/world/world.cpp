@@ -801,7 +801,8 @@ void World::refresh() {
   const TruthStep ts = compute_ground_truth(
       {*net_, path_, actors_, ego_.pose, ego_.speed, config_.ego.width, config_.world,
        [this](const ViaInfo& vi) { return link_state(vi); },
-       [this](const std::string& lane, bool minor) { return junction_lane_blocked(lane, minor); }});
+       [this](const std::string& lane, bool minor) { return junction_lane_blocked(lane, minor); },
+       config_.ego.length});
   truth_ = ts.truth;
   command_ = ts.command;
   prev_link_state_ = ts.next_light_state;

@@ -27,6 +27,11 @@ struct WorldSettings {
   double vehicle_margin = 0.4;  // m beside the ego's body within which a car is in the way
   double ped_margin = 0.8;      // m beside the ego's body within which a pedestrian is
   double ped_lookahead_s = 1.5; // s, pedestrians are also checked where they will be
+  // A pedestrian beside the ego's body (ped_margin) straight ahead of its front, as far as it
+  // drives in ped_lookahead_s plus 1 m but at most ped_ahead_m, is in its way even off the route
+  // path (a free ego's body leaves the path in turns: a pedestrian in front of it must not drop
+  // out of the path test)
+  double ped_ahead_m = 8.0;
   double yield_time = 5.0;      // s, priority traffic closer than this in time is waited for
 };
 

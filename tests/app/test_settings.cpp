@@ -207,6 +207,11 @@ TEST(ConfigErrors, OutOfRangeValuesAreNamed) {
       {"[world.density.dense]\npeds_per_km = -2\n", "world.density.dense.peds_per_km"},
       {"[world]\ndt = nan\n", "world.dt"},
       {"[world]\nview_radius = inf\n", "world.view_radius"},
+      {"[world]\nped_ahead_m = -1\n", "world.ped_ahead_m"},
+      {"[collect]\nhold_s = -0.5\n", "collect.hold_s"},
+      {"[train]\nsituation_weights = \"inverse\"\n", "train.situation_weights"},
+      {"[train]\nsituation_weight_max = 0.5\n", "train.situation_weight_max"},
+      {"[model]\npedals = \"three\"\n", "model.pedals"},
   };
   for (const Case& c : cases) {
     std::string path;

@@ -328,6 +328,11 @@ TEST(Collect, HoldKeepsTheEgoStillWithTheExpertsLabels) {
   }
   EXPECT_EQ(d.noise[10], 0);
   EXPECT_GT(d.speed[11], 0.0f) << "the expert did not start after the hold";
+  // Same seed, same bytes.
+  const std::string again = dir / "again";
+  ASSERT_EQ(collect_cli(config, again, 1, 1).exit_code, 0);
+  EXPECT_TRUE(test::read_text(out + "/" + episode_file_name(0)) ==
+              test::read_text(again + "/" + episode_file_name(0)));
 }
 
 }  // namespace

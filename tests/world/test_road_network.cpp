@@ -284,6 +284,40 @@ TEST(GroundTruth, PedestriansYieldingAndCommand) {
   EXPECT_TRUE(truth_of(net, near, {aside}, 0.0, ws, j).truth.ped_on_path);
 }
 
+// A free ego's body leaves its path in turns: a pedestrian straight ahead of the body is in its
+// way even where it is beside the path (the expert drove into one on town-b-regular task 10,
+// trial 1, when it dropped out of the path test for a step).
+TEST(GroundTruth, PedestrianAheadOfTheBodyOffThePathIsInTheWay) {
+  const RoadNetwork net = straight_network();
+  const LanePlan plan = net.lane_plan(kRoute);
+  WorldSettings ws;
+  Junction j;
+  const RoutePath path = trace_route_path(net, kRoute, plan, "A_0", 52.25, 80);
+  // A pedestrian 2.2 m left of the lane centre, 2.75 m ahead of the front: off the path (the
+  // path test reaches 0.9 + 0.8 = 1.7 m beside the centre line).
+  const Actor ped{"ped", Box{{55, 2.2}, 0, 0.5, 0.5}, 0.0, true};
+  auto truth = [&](Pose2 ego, double speed) {
+    return compute_ground_truth({net, path, {ped}, ego, speed, 1.8, ws,
+                                 [&](const ViaInfo&) { return j.light; },
+                                 [&](const std::string&, bool) { return false; }, 4.5})
+        .truth;
+  };
+  EXPECT_FALSE(truth(Pose2{{50, 0}, 0}, 5.0).ped_on_path);
+  // The ego's body 1.2 m left of the centre line (centre at x 50, front at 52.25) at 5 m/s (its
+  // corridor: min(8, 1 + 5 * 1.5) = 8 m): the pedestrian is 1.0 m beside its axis, 2.75 m ahead
+  // of its front.
+  GroundTruth t = truth(Pose2{{50, 1.2}, 0}, 5.0);
+  EXPECT_TRUE(t.ped_on_path);
+  EXPECT_NEAR(t.ped_distance, 2.75, 1e-9);
+  EXPECT_FALSE(t.path_free);
+  // At 1 m/s the corridor is 2.5 m: the pedestrian is beyond it. Turned away (heading -0.5
+  // rad: 3.3 m beside its axis): off. A shorter ped_ahead_m (2 m) caps it.
+  EXPECT_FALSE(truth(Pose2{{50, 1.2}, 0}, 1.0).ped_on_path);
+  EXPECT_FALSE(truth(Pose2{{50, 1.2}, -0.5}, 5.0).ped_on_path);
+  ws.ped_ahead_m = 2.0;
+  EXPECT_FALSE(truth(Pose2{{50, 1.2}, 0}, 5.0).ped_on_path);
+}
+
 TEST(CauseSchema, RecordedSeriesInFileOrder) {
   const auto& schema = cause_schema();
   std::vector<std::string> names;
