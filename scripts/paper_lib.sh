@@ -35,7 +35,8 @@ restore_run() {
 # (weights and records; not cim's Granger series series.csv, 40 MB, which only `causaldrive
 # granger` reads, nor the policy family's resume state, model.pt and optimizer.pt: agents load
 # best.pt). A run holding a file over KEEP_MAX_MB (default 5) is not kept, since git holds no
-# file that large: it stays in DIR and a fresh checkout trains it again. A kept run is used as
+# file that large: it stays in DIR and a fresh checkout trains it again (its checkpoint.json and
+# metrics.jsonl are kept in KEPT.record, as a record only). A kept run is used as
 # it is, like a kept evaluation: it is copied back into DIR and not trained again, so a fresh
 # checkout evaluates the same weights (retraining on another machine gives other floats:
 # libtorch picks its kernels by CPU). Identical files (the VAE that cim-mlp and the few-shot
@@ -49,16 +50,27 @@ kept_train() {
     return 0
   fi
   "$CD" train "$@" --out "$dir"
-  local files=() max_mb=${KEEP_MAX_MB:-5}
+  local files=() max_mb=${KEEP_MAX_MB:-5} over=""
   for file in "$dir"/*; do
     [[ -f $file ]] || continue
     case $(basename "$file") in series.csv | model.pt | optimizer.pt) continue ;; esac
     if (( $(stat -c %s "$file") > max_mb * 1000000 )); then
-      echo "$dir: not kept ($(basename "$file") is over $max_mb MB)" >&2
-      return 0
+      over+=" $(basename "$file")"
+      continue
     fi
     files+=("$file")
   done
+  if [[ -n $over ]]; then
+    # The files under the limit (its record) are kept beside, as KEPT.record: never restored,
+    # so a fresh checkout trains it again.
+    echo "$dir: not kept (${over# } over $max_mb MB); its record is kept in $kept.record" >&2
+    rm -rf "$kept.record.tmp"
+    mkdir -p "$kept.record.tmp"
+    [[ ${#files[@]} == 0 ]] || cp "${files[@]}" "$kept.record.tmp/"
+    rm -rf "$kept.record"
+    mv "$kept.record.tmp" "$kept.record"
+    return 0
+  fi
   rm -rf "$kept.tmp"
   mkdir -p "$kept.tmp"
   cp "${files[@]}" "$kept.tmp/"

@@ -74,7 +74,7 @@ train_all() {
   for s in $SEEDS; do
     local T=$OUT/train/seed$s
     for m in $METHODS; do
-      "$CD" train --config "$CONFIG" --method "$m" --data "$DATA" --seed "$s" --out "$T/$m"
+      kept_train "$T/$m" --config "$CONFIG" --method "$m" --data "$DATA" --seed "$s"
     done
   done
 }

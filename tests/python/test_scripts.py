@@ -73,6 +73,7 @@ class KeptTrainTest(TempDirCase):
                     'while [[ $1 != --out ]]; do shift; done\nmkdir -p "$2"\n'
                     'echo "{}" > "$2/run.json"; echo w > "$2/vae.pt"; echo s > "$2/series.csv"\n'
                     'echo b > "$2/best.pt"; echo m > "$2/model.pt"; echo o > "$2/optimizer.pt"\n'
+                    '[[ -z ${BIG:-} ]] || cp "$BIG" "$2/best.pt"\n'
                     % self.dir)
         os.chmod(fake, 0o755)
         script = ('source "%s/scripts/paper_lib.sh"\n'
@@ -99,9 +100,25 @@ class KeptTrainTest(TempDirCase):
     def test_a_run_with_a_file_over_the_limit_is_trained_but_not_kept(self):
         calls = self.kept_train("cim", KEEP_MAX_MB="0")
         self.assertEqual(len(calls), 1)
-        self.assertFalse(os.path.exists(os.path.join(self.dir, "keep")))
+        # Every file is over 0 MB: nothing is kept, not even a record, and no run folder.
+        seed0 = os.path.join(self.dir, "keep", "train", "seed0")
+        self.assertEqual(os.listdir(seed0), ["cim.record"])
+        self.assertEqual(os.listdir(os.path.join(seed0, "cim.record")), [])
         self.assertIn("out/train/seed0/cim: not kept (", self.stderr)
         self.assertTrue(os.path.exists(os.path.join(self.dir, "out/train/seed0/cim/vae.pt")))
+
+    def test_a_run_with_weights_over_the_limit_keeps_its_record(self):
+        # The fake's files are 2-3 bytes: a limit of 0 MB takes all; make best.pt large instead.
+        fake_big = os.path.join(self.dir, "big")
+        with open(fake_big, "wb") as f:
+            f.write(b"x" * 2_000_001)
+        calls = self.kept_train("cim", KEEP_MAX_MB="2", BIG=fake_big)
+        self.assertEqual(len(calls), 1)
+        seed0 = os.path.join(self.dir, "keep", "train", "seed0")
+        self.assertEqual(sorted(os.listdir(seed0)), ["cim.record"])
+        self.assertEqual(sorted(os.listdir(os.path.join(seed0, "cim.record"))),
+                         ["run.json", "vae.pt"])
+        self.assertIn("not kept (best.pt over 2 MB)", self.stderr)
 
     def test_a_kept_run_is_copied_back_and_not_trained(self):
         kept = os.path.join(self.dir, "keep", "train", "seed0", "dim")
