@@ -116,7 +116,7 @@ TEST(CliHelp, EverySubcommandHasHelp) {
       {"--help"},          {"quickstart", "--help"}, {"town", "--help"},
       {"collect", "--help"}, {"bench", "--help"},    {"bench", "world", "--help"},
       {"train", "--help"}, {"eval", "--help"},       {"granger", "--help"},
-      {"report", "--help"}};
+      {"report", "--help"}, {"diagnose", "--help"}};
   for (const auto& args : commands) {
     std::string cmd;
     for (const auto& a : args) cmd += a + " ";
