@@ -24,6 +24,7 @@ struct PolicyRunner::Impl {
   Checkpoint ck;
   std::unique_ptr<PolicyNets> nets;
   std::vector<float> action;
+  std::vector<float> learned;  // signed pedals: the network's output before decoding
   // Preallocated inputs: one observation, filled in place every step.
   torch::Tensor image, speed, command;
   size_t frame_values = 0;
@@ -141,14 +142,15 @@ torch::Tensor PolicyRunner::Impl::act(const float* previous, torch::Tensor* feat
 PolicyStep PolicyRunner::Impl::step(torch::Tensor a, bool target_speed_head) {
   a = a.detach().contiguous();
   const float* v = a.data_ptr<float>();
-  action.assign(v, v + a.size(1));
   if (!target_speed_head && signed_pedals(ck.model, ck.input.domain)) {
     // throttle - brake[, steer] -> throttle, brake[, steer]
-    std::vector<float> learned = action;
+    learned.assign(v, v + a.size(1));
     action.resize(static_cast<size_t>(ck.input.action_dim));
     pedals_to_recorded(learned.data(), ck.input.action_dim, action.data());
-    v = action.data();
+  } else {
+    action.assign(v, v + a.size(1));
   }
+  v = action.data();
   PolicyStep s;
   if (target_speed_head) {
     s.target_speed = std::max(0.0f, v[0]);

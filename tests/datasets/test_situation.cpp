@@ -4,16 +4,13 @@
 
 #include <gtest/gtest.h>
 
+#include "../support/situation_masks.hpp"
 #include "core/error.hpp"
 
 namespace cd {
 namespace {
 
-uint32_t bits(std::initializer_list<Situation> s) {
-  uint32_t m = 1u << kAllFrames;
-  for (Situation x : s) m |= 1u << x;
-  return m;
-}
+using test::situation_bits;
 
 // Ten steps, each built to fall in known situations (dt 0.1; acceleration = next speed minus
 // this one over dt; the last step looks back).
@@ -34,23 +31,23 @@ PackedEpisode hand_made_episode() {
 TEST(Situations, SituationsOfHandMadeStepsFollowTheRules) {
   PackedEpisode ep = hand_made_episode();
   const std::vector<uint32_t> expected = {
-      bits({kStandingFree}),                // 0: stands, free, stays
-      bits({kStandingFree, kStarting}),     // 1: stands, accelerates (1 m/s^2)
-      bits({kStandingFree, kStarting}),     // 2: 0.1 m/s, accelerating
-      bits({kStarting, kFollowing}),        // 3: 2 m/s, accelerating, leader 25 m
-      bits({kCruising}),                    // 4: 5 m/s, leader at 40 m is beyond 30
-      bits({kSlowingRed}),                  // 5: red 12 m <= 25/6 + 10
-      bits({kSlowingOther}),                // 6: red 20 m > 4.5^2/6 + 10 = 13.4
-      bits({kStandingBlocked}),             // 7: red 3 m, path blocked
-      bits({kStandingBlocked}),             // 8: yellow 8 m counts as red, path free
-      bits({}),                             // 9: stands, path blocked by nothing it names
+      situation_bits({kStandingFree}),                // 0: stands, free, stays
+      situation_bits({kStandingFree, kStarting}),     // 1: stands, accelerates (1 m/s^2)
+      situation_bits({kStandingFree, kStarting}),     // 2: 0.1 m/s, accelerating
+      situation_bits({kStarting, kFollowing}),        // 3: 2 m/s, accelerating, leader 25 m
+      situation_bits({kCruising}),                    // 4: 5 m/s, leader at 40 m is beyond 30
+      situation_bits({kSlowingRed}),                  // 5: red 12 m <= 25/6 + 10
+      situation_bits({kSlowingOther}),                // 6: red 20 m > 4.5^2/6 + 10 = 13.4
+      situation_bits({kStandingBlocked}),             // 7: red 3 m, path blocked
+      situation_bits({kStandingBlocked}),             // 8: yellow 8 m counts as red, path free
+      situation_bits({}),                             // 9: stands, path blocked by nothing it names
   };
   for (int t = 0; t < ep.frames; ++t)
     EXPECT_EQ(situations_at(ep, t, 0.1), expected[t]) << "step " << t;
   // The thresholds are settings: a 3 m/s^2 threshold makes step 1 no start.
   SituationRules strict;
   strict.accel_threshold = 3.0;
-  EXPECT_EQ(situations_at(ep, 1, 0.1, strict), bits({kStandingFree}));
+  EXPECT_EQ(situations_at(ep, 1, 0.1, strict), situation_bits({kStandingFree}));
 }
 
 TEST(Situations, MissingCauseIsADataErrorNamingTheFile) {
@@ -67,11 +64,11 @@ TEST(Situations, MissingCauseIsADataErrorNamingTheFile) {
 }
 
 TEST(Situations, ClassIsTheFirstRareTransition) {
-  EXPECT_EQ(situation_class(bits({kCruising, kFollowing})), kFollowing);
-  EXPECT_EQ(situation_class(bits({kStandingFree, kStarting})), kStarting);
-  EXPECT_EQ(situation_class(bits({kSlowingRed})), kSlowingRed);
-  EXPECT_EQ(situation_class(bits({kStandingBlocked, kFollowing})), kStandingBlocked);
-  EXPECT_EQ(situation_class(bits({})), kAllFrames);
+  EXPECT_EQ(situation_class(situation_bits({kCruising, kFollowing})), kFollowing);
+  EXPECT_EQ(situation_class(situation_bits({kStandingFree, kStarting})), kStarting);
+  EXPECT_EQ(situation_class(situation_bits({kSlowingRed})), kSlowingRed);
+  EXPECT_EQ(situation_class(situation_bits({kStandingBlocked, kFollowing})), kStandingBlocked);
+  EXPECT_EQ(situation_class(situation_bits({})), kAllFrames);
 }
 
 TEST(Situations, BalancedWeightsByHand) {

@@ -21,6 +21,7 @@
 #include <stb/stb_image.h>
 
 #include "../support/fake_episodes.hpp"
+#include "../support/tiny_training.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "datasets/episode_set.hpp"
@@ -96,29 +97,8 @@ TEST(GradCam, TopChannelIsTheOneDrawnOnTop) {
 // 3 episodes of 32 x 32 frames (the small backbone's map is then 2 x 2), 8 channels.
 constexpr int kSize = 32;
 
-Settings tiny_settings() {
-  Settings s;
-  s.model.features = 16;
-  s.model.history = 3;
-  s.model.history_stride = 2;
-  s.model.dropout = 0;
-  s.train.batch_size = 16;
-  s.train.threads = 1;
-  s.train.lr = 1e-3;
-  s.train.epochs = 1;
-  s.train.val_fraction = 0.34;
-  return s;
-}
-
-std::string train(const TempDir& dir, const std::string& method, const std::string& name,
-                  Settings s = tiny_settings()) {
-  TrainRequest req;
-  req.method = method;
-  req.data_dir = dir / "data";
-  req.out_dir = dir / name;
-  req.quiet = true;
-  train_method(s, req);
-  return req.out_dir;
+std::string train(const TempDir& dir, const std::string& method, const std::string& name) {
+  return test::train_tiny_run(dir, method, name);
 }
 
 // The observation of episode e at step t through the checkpoint's history.

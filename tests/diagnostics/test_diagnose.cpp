@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include "../support/situation_masks.hpp"
+
 #include <cmath>
 
 #include <nlohmann/json.hpp>
@@ -12,11 +14,7 @@
 namespace cd {
 namespace {
 
-uint32_t bits(std::initializer_list<Situation> s) {
-  uint32_t m = 1u << kAllFrames;
-  for (Situation x : s) m |= 1u << x;
-  return m;
-}
+using test::situation_bits;
 
 std::vector<DiagnosedFrame> frames_of(const std::vector<float>& labels,
                                       const std::vector<float>& predictions) {
@@ -28,7 +26,7 @@ std::vector<DiagnosedFrame> frames_of(const std::vector<float>& labels,
 
 TEST(Diagnose, PerfectPredictionHasR2OneAndConstantHasR2AtMostZero) {
   const std::vector<float> y = {0, 1, 2, 3};
-  const std::vector<uint32_t> all(4, bits({}));
+  const std::vector<uint32_t> all(4, situation_bits({}));
   const ComponentStats perfect =
       summarize_diagnosis({"throttle"}, frames_of(y, y), all, kDrivingDomain)
           .situations[kAllFrames].components[0];
@@ -56,7 +54,7 @@ TEST(Diagnose, PerfectPredictionHasR2OneAndConstantHasR2AtMostZero) {
   // Constant labels: R^2 of a wrong prediction is undefined (null in JSON).
   DiagnosisReport flat =
       summarize_diagnosis({"brake"}, frames_of({0.3f, 0.3f}, {0.1f, 0.2f}),
-                          {bits({}), bits({})}, kDrivingDomain);
+                          {situation_bits({}), situation_bits({})}, kDrivingDomain);
   EXPECT_FALSE(flat.situations[kAllFrames].components[0].r2_defined);
   EXPECT_TRUE(diagnosis_json(flat)["situations"]["all"]["brake"]["r2"].is_null());
   EXPECT_NE(diagnosis_table(summarize_diagnosis({"throttle"}, frames_of(y, {1, 1, 1, 1}), all,
@@ -70,7 +68,8 @@ TEST(Diagnose, EverySituationCountsItsOwnFramesPerComponent) {
   std::vector<DiagnosedFrame> f = {{0, 0, {1.0f, 0.0f}, {0.5f, 0.0f}},
                                    {0, 1, {0.1f, 0.0f}, {0.1f, 0.2f}},
                                    {0, 2, {0.0f, 0.3f}, {0.0f, 0.3f}}};
-  const std::vector<uint32_t> m = {bits({kStandingFree, kStarting}), bits({kCruising}), bits({})};
+  const std::vector<uint32_t> m = {situation_bits({kStandingFree, kStarting}),
+                                   situation_bits({kCruising}), situation_bits({})};
   DiagnosisReport r = summarize_diagnosis({"throttle", "brake"}, f, m, kDrivingDomain);
   ASSERT_EQ(r.situations.size(), static_cast<size_t>(kSituationCount));
   const std::vector<long> counts = {3, 1, 1, 1, 0, 0, 0, 0};

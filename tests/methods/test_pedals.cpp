@@ -9,13 +9,12 @@
 #include <vector>
 
 #include "../support/fake_episodes.hpp"
+#include "../support/tiny_training.hpp"
 #include "core/error.hpp"
 #include "datasets/dataset.hpp"
 #include "inference/policy_runner.hpp"
-#include "methods/method.hpp"
 #include "nn/model_settings.hpp"
 #include "runs/checkpoint.hpp"
-#include "train/request.hpp"
 
 namespace cd {
 namespace {
@@ -61,23 +60,10 @@ TEST(Pedals, DatasetLabelsAndPreviousActionsAreThrottleMinusBrake) {
 }
 
 std::string train_signed(const TempDir& dir, const std::string& method) {
-  Settings s;
-  s.model.features = 16;
-  s.model.history = 3;
-  s.model.history_stride = 2;
+  Settings s = test::tiny_family_settings();
   s.model.pedals = "signed";
-  s.train.epochs = 1;
-  s.train.batch_size = 16;
-  s.train.threads = 1;
-  s.train.val_fraction = 0.34;
   if (method == "residual") s.residual.policy = "residual_controller";
-  TrainRequest req;
-  req.method = method;
-  req.data_dir = dir / "data";
-  req.out_dir = dir / method;
-  req.quiet = true;
-  train_method(s, req);
-  return req.out_dir;
+  return test::train_tiny_run(dir, method, method, s);
 }
 
 TEST(Pedals, ATrainedPolicyIsDecodedAndNeverPressesBoth) {

@@ -9,12 +9,11 @@
 #include <torch/torch.h>
 
 #include "../support/fake_episodes.hpp"
+#include "../support/tiny_training.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "datasets/situation.hpp"
-#include "methods/method.hpp"
 #include "methods/policy_family.hpp"
-#include "train/request.hpp"
 
 namespace cd {
 namespace {
@@ -65,22 +64,9 @@ TEST(SituationWeights, EveryClassWeighsTheSameInAll) {
 }
 
 std::string train_weights(const TempDir& dir, const std::string& name, const std::string& mode) {
-  Settings s;
-  s.model.features = 16;
-  s.model.history = 3;
-  s.model.history_stride = 2;
-  s.train.epochs = 1;
-  s.train.batch_size = 16;
-  s.train.threads = 1;
-  s.train.val_fraction = 0.34;
+  Settings s = test::tiny_family_settings();
   s.train.situation_weights = mode;
-  TrainRequest req;
-  req.method = "bc-oh";
-  req.data_dir = dir / "data";
-  req.out_dir = dir / name;
-  req.quiet = true;
-  train_method(s, req);
-  return read_file_bytes(req.out_dir + "/best.pt");
+  return read_file_bytes(test::train_tiny_run(dir, "bc-oh", name, s) + "/best.pt");
 }
 
 TEST(SituationWeights, TrainingWithThemIsDeterministicAndDiffers) {

@@ -105,9 +105,10 @@ struct Junction {
 };
 
 TruthStep truth_of(const RoadNetwork& net, const RoutePath& path, const std::vector<Actor>& actors,
-                   double speed, const WorldSettings& ws, Junction& j) {
+                   double speed, const WorldSettings& ws, Junction& j,
+                   Pose2 ego = Pose2{{38, 0}, 0}) {
   return compute_ground_truth(
-      {net, path, actors, Pose2{{38, 0}, 0}, speed, 1.8, ws,
+      {net, path, actors, ego, speed, 1.8, ws,
        [&](const ViaInfo&) { return j.light; },
        [&](const std::string& lane, bool) {
          j.asked.push_back(lane);
@@ -297,10 +298,7 @@ TEST(GroundTruth, PedestrianAheadOfTheBodyOffThePathIsInTheWay) {
   // path test reaches 0.9 + 0.8 = 1.7 m beside the centre line).
   const Actor ped{"ped", Box{{55, 2.2}, 0, 0.5, 0.5}, 0.0, true};
   auto truth = [&](Pose2 ego, double speed) {
-    return compute_ground_truth({net, path, {ped}, ego, speed, 1.8, ws,
-                                 [&](const ViaInfo&) { return j.light; },
-                                 [&](const std::string&, bool) { return false; }, 4.5})
-        .truth;
+    return truth_of(net, path, {ped}, speed, ws, j, ego).truth;
   };
   EXPECT_FALSE(truth(Pose2{{50, 0}, 0}, 5.0).ped_on_path);
   // The ego's body 1.2 m left of the centre line (centre at x 50, front at 52.25) at 5 m/s (its
