@@ -1,5 +1,7 @@
 #!/usr/bin/env bash
 # Installs the Debian packages causaldrive needs; does nothing when they are all present.
+# OpenMPI is optional to the build (CMakeLists.txt: collect/eval under mpirun); it is installed
+# here so that the MPI tests run.
 set -euo pipefail
 
 packages=(
@@ -14,6 +16,7 @@ packages=(
   libgtest-dev libbenchmark-dev
   python3 python3-dev python3-numpy python3-h5py python3-statsmodels python3-torch
   pybind11-dev python3-pybind11
+  libopenmpi-dev openmpi-bin
 )
 
 missing=()

@@ -16,6 +16,8 @@
 #include "core/fault.hpp"
 #include "agents/observation_feed.hpp"
 #include "core/progress.hpp"
+#include "core/mpi.hpp"
+#include "core/run_lock.hpp"
 #include "core/worker_pool.hpp"
 #include "methods/method.hpp"
 #include "sense/sensor_shift.hpp"
@@ -206,6 +208,7 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
 
   const std::string& out = settings.eval.out;
   const std::string ep_dir = out + "/episodes";
+  const RunLock lock = lock_run_folder(out, "eval");
   std::error_code ec;
   fs::create_directories(ep_dir, ec);
   if (ec) throw IoError("cannot create output folder " + ep_dir + ": " + ec.message());
@@ -231,10 +234,8 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
 
   EvalReport report;
   auto t_start = std::chrono::steady_clock::now();
-  std::unique_ptr<Progress> progress;
-  if (!req.quiet)
-    progress = std::make_unique<Progress>("eval " + label + " on " + suite.name, total,
-                                          total - static_cast<long>(todo.size()));
+  const std::unique_ptr<Progress> progress = job_progress(
+      req.quiet, "eval " + label + " on " + suite.name, total, static_cast<long>(todo.size()));
   // Episode i is trial i % trials of task i / trials.
   auto identify = [&](EpisodeResult& r, int i) {
     r.index = i;
@@ -284,6 +285,9 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
   const std::vector<int>& remaining = pool.failed;
   const std::string& error = pool.first_error;
   if (progress) progress->finish();
+  report.steps = mpi_sum(report.steps);  // the whole job's, under MPI
+  report.run_now = static_cast<int>(mpi_sum(report.run_now));
+  if (!mpi_lead()) return report;  // under MPI rank 0 writes results.json, last
   nlohmann::json episodes = nlohmann::json::array();
   for (int i = 0; i < total; ++i) {
     EpisodeResult& r = results[i];

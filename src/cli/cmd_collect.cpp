@@ -2,6 +2,7 @@
 #include <map>
 
 #include "cli/commands.hpp"
+#include "core/mpi.hpp"
 #include "cli/common.hpp"
 #include "collect/collect.hpp"
 #include "core/error.hpp"
@@ -53,6 +54,7 @@ void collect_mujoco(const CollectArgs& a) {
   if (a.planner_temperature > 0) o.planner.temperature = a.planner_temperature;
   if (a.planner_smoothing >= 0) o.planner.smoothing = a.planner_smoothing;
   const mj::CollectReport r = mj::collect(o);
+  if (!mpi_lead()) return;  // under MPI rank 0 reports the job
   double mean = 0;
   for (double v : r.returns) mean += v / std::max<size_t>(1, r.returns.size());
   std::printf("episodes in %s: %d (recorded now: %d, kept: %d), mean return %.1f\n", o.out.c_str(),
@@ -149,6 +151,7 @@ void add_collect(CLI::App& app) {
     CollectOptions opt;
     opt.png_dir = args->png;
     CollectReport r = collect(s, opt);
+    if (!mpi_lead()) return;  // under MPI rank 0 reports the job
     print_collect_summary(r, s.collect.out);
   });
 }

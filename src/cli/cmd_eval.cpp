@@ -6,6 +6,7 @@
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "core/mpi.hpp"
 #include "methods/method.hpp"
 #include "mujoco/eval.hpp"
 
@@ -48,6 +49,7 @@ void eval_mujoco(const EvalArgs& a) {
   o.expert_policies = s.mujoco.expert_policies;
   o.quiet = a.quiet;
   const mj::EvalReport r = mj::evaluate(o);
+  if (!mpi_lead()) return;  // under MPI rank 0 reports the job
   std::printf("%s", mj::eval_table(r.results).c_str());
   std::printf("results: %s/results.json (%d episodes run now", o.out.c_str(), r.run_now);
   if (r.run_now > 0 && r.seconds > 0)
@@ -129,6 +131,7 @@ void add_eval(CLI::App& app) {
     req.quiet = a->quiet;
     req.trace = a->trace;
     EvalReport r = run_eval(s, req);
+    if (!mpi_lead()) return;  // under MPI rank 0 reports the job
     std::printf("%s", results_table(r.results).c_str());
     std::printf("results: %s/results.json (%d episodes run now", s.eval.out.c_str(), r.run_now);
     if (r.run_now > 0 && r.seconds > 0)

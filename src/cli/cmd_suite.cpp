@@ -7,6 +7,7 @@
 #include "cli/common.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "core/run_lock.hpp"
 
 namespace cd::cli {
 
@@ -60,6 +61,7 @@ void add_suite(CLI::App& app) {
       // it can drive needs no lane change, so both modes drive every built-in task.
       Settings route = s;
       route.ego.lateral = "route";
+      const RunLock lock = lock_run_folder(a->out, "suite");
       bool any = false;
       for (const SuiteRecipe& r : builtin_suite_recipes()) {
         if (a->builtin != "all" && a->builtin != r.name) continue;

@@ -2,12 +2,15 @@
 #include <cstdio>
 #include <cstdlib>
 #include <exception>
+#include <memory>
 #include <string>
 
 #include <CLI/CLI.hpp>
 
+#include "app/build_info.hpp"
 #include "cli/commands.hpp"
 #include "core/error.hpp"
+#include "core/mpi.hpp"
 
 namespace {
 
@@ -26,14 +29,51 @@ std::string usage_error(std::string msg) {
   return msg;
 }
 
+// The subcommand a command line names (its first word that is not an option), or "".
+std::string subcommand_of(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i)
+    if (argv[i][0] != '-') return argv[i];
+  return "";
+}
+
+// One line for an error; under MPI it names the rank and ends every rank of the job (the
+// others may be waiting for this one), and an error another rank reported is not repeated.
+int fail(const char* kind, const std::exception& e, int code) {
+  if (dynamic_cast<const cd::MpiEchoError*>(&e) == nullptr) {
+    if (cd::mpi_distributed())
+      std::fprintf(stderr, "causaldrive: %s: %s: %s\n", kind, cd::mpi_where().c_str(), e.what());
+    else
+      std::fprintf(stderr, "causaldrive: %s: %s\n", kind, e.what());
+  }
+  std::fflush(stderr);
+  cd::mpi_abort(code);
+  return code;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Under mpirun: MPI for the life of the command (core/mpi.hpp). Only collect and eval are
+  // spread over ranks; the other ranks' stdout is dropped (rank 0 prints the results).
+  std::unique_ptr<cd::MpiSession> mpi;
+  try {
+    mpi = std::make_unique<cd::MpiSession>(&argc, &argv);
+    if (cd::mpi_distributed()) {
+      const std::string sub = subcommand_of(argc, argv);
+      if (!sub.empty() && sub != "collect" && sub != "eval")
+        cd::throw_job_error("'" + sub + "' runs in one process; only collect and eval spread "
+                            "over MPI ranks (start it without mpirun)");
+      if (!cd::mpi_lead() && std::freopen("/dev/null", "w", stdout) == nullptr)
+        throw cd::IoError("cannot silence the output of " + cd::mpi_where());
+    }
+  } catch (const cd::Error& e) {
+    return fail("error", e, 1);
+  }
   CLI::App app{
       "causaldrive: collect expert driving in SUMO, train imitation policies, measure inertia "
       "and collisions"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", "causaldrive 0.1.0");
+  app.set_version_flag("--version", cd::build_description());
   cd::cli::add_quickstart(app);
   cd::cli::add_town(app);
   cd::cli::add_collect(app);
@@ -57,14 +97,14 @@ int main(int argc, char** argv) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     // A bad command line: one line naming the problem, exit status 2 (usage).
-    std::fprintf(stderr, "causaldrive: error: %s (see --help)\n", usage_error(e.what()).c_str());
+    // (Under mpirun every rank sees the same command line: rank 0 says it.)
+    if (cd::mpi_lead())
+      std::fprintf(stderr, "causaldrive: error: %s (see --help)\n", usage_error(e.what()).c_str());
     return 2;
   } catch (const cd::Error& e) {
-    std::fprintf(stderr, "causaldrive: error: %s\n", e.what());
-    return 1;
+    return fail("error", e, 1);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "causaldrive: internal error: %s\n", e.what());
-    return 70;
+    return fail("internal error", e, 70);
   }
   return 0;
 }

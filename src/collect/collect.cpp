@@ -13,6 +13,8 @@
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "core/progress.hpp"
+#include "core/mpi.hpp"
+#include "core/run_lock.hpp"
 #include "core/worker_pool.hpp"
 #include "data/h5_io.hpp"
 #include "data/h5_episode.hpp"
@@ -41,9 +43,7 @@ std::string episode_file_name(int index) {
 CollectReport collect(const Settings& settings, const CollectOptions& options) {
   resolve_network(settings.world.town);  // a bad town is one clear error, not one per worker
   const std::string& out = settings.collect.out;
-  std::error_code ec;
-  fs::create_directories(out, ec);
-  if (ec) throw IoError("cannot create output folder " + out + ": " + ec.message());
+  const RunLock lock = lock_run_folder(out, "collect");  // creates the folder
   remove_stale_temporaries(out);
 
   std::vector<int> todo;
@@ -53,8 +53,8 @@ CollectReport collect(const Settings& settings, const CollectOptions& options) {
   CollectReport report;
   auto t0 = std::chrono::steady_clock::now();
   int total = settings.collect.episodes;
-  std::unique_ptr<Progress> progress;
-  if (!options.quiet) progress = std::make_unique<Progress>("collect", total, total - (long)todo.size());
+  const std::unique_ptr<Progress> progress =
+      job_progress(options.quiet, "collect", total, static_cast<long>(todo.size()));
   // Each worker loads the network once; each episode runs in a fresh fork of it.
   std::unique_ptr<World> world;
   auto setup = [&] { world = std::make_unique<World>(settings); };
@@ -86,12 +86,14 @@ CollectReport collect(const Settings& settings, const CollectOptions& options) {
   const std::vector<int>& remaining = pool.failed;
   const std::string& error = pool.first_error;
   if (progress) progress->finish();
+  report.frames = mpi_sum(report.frames);  // the whole job's, under MPI
   report.recorded_now = static_cast<int>(todo.size() - remaining.size());
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (!remaining.empty()) {
-    throw Error("collection failed for " + std::to_string(remaining.size()) + " episode(s) (" +
-                error + "); rerun the same command to resume");
+    throw_job_error("collection failed for " + std::to_string(remaining.size()) +
+                    " episode(s) (" + error + "); rerun the same command to resume");
   }
+  if (!mpi_lead()) return report;  // under MPI rank 0 writes the manifest, last
 
   nlohmann::json summary = nlohmann::json::array();
   for (int i = 0; i < total; ++i) {

@@ -11,6 +11,7 @@
 #include <iterator>
 
 #include "core/error.hpp"
+#include "core/mpi.hpp"
 
 namespace cd {
 
@@ -51,9 +52,13 @@ std::string read_file_bytes(const std::string& path) {
 }
 
 void remove_stale_temporaries(const std::string& dir) {
-  std::error_code ec;
-  for (const auto& e : std::filesystem::directory_iterator(dir, ec))
-    if (e.path().filename().string().ends_with(".tmp")) std::filesystem::remove(e.path(), ec);
+  // Under MPI, rank 0 cleans and no rank writes into the folder before it is done.
+  if (mpi_lead()) {
+    std::error_code ec;
+    for (const auto& e : std::filesystem::directory_iterator(dir, ec))
+      if (e.path().filename().string().ends_with(".tmp")) std::filesystem::remove(e.path(), ec);
+  }
+  mpi_barrier();
 }
 
 }  // namespace cd

@@ -15,6 +15,7 @@ void commit_temp_file(const std::string& tmp, const std::string& final_path);
 void write_file_atomic(const std::string& path, const std::string& content);
 
 // Removes the temporary files of interrupted writes in `dir` (they never carry a final name).
+// Under MPI rank 0 removes them and every rank waits until it has (a collective).
 void remove_stale_temporaries(const std::string& dir);
 
 // The whole content of a file. Throws IoError when it cannot be read.

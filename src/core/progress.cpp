@@ -1,5 +1,7 @@
 #include "core/progress.hpp"
 
+#include "core/mpi.hpp"
+
 #include <unistd.h>
 
 #include <cstdio>
@@ -58,6 +60,14 @@ void Progress::print(bool final_line, const std::string& note) {
 void log_line(const std::string& line) {
   std::fprintf(stderr, "%s%s\n", isatty(STDERR_FILENO) ? "\r\033[K" : "", line.c_str());
   std::fflush(stderr);
+}
+
+std::unique_ptr<Progress> job_progress(bool quiet, const std::string& label, long total,
+                                       long todo) {
+  if (quiet || !mpi_lead()) return nullptr;
+  if (!mpi_distributed()) return std::make_unique<Progress>(label, total, total - todo);
+  const long ranks = mpi_place().size, share = (todo + ranks - 1) / ranks;
+  return std::make_unique<Progress>(label + ", rank 0 of " + std::to_string(ranks), share, 0);
 }
 
 }  // namespace cd

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "core/error.hpp"
+#include "core/mpi.hpp"
 
 namespace cd {
 
@@ -137,10 +138,29 @@ PoolReport run_worker_pool_with_retries(
     const std::function<void(int, const std::string&)>& on_done) {
   PoolReport report;
   report.failed = todo;
+  if (mpi_distributed()) {
+    // Rank 0's list (what it found still to do), every size-th job of it on this rank, in one
+    // world (one worker); then every rank learns what failed where.
+    const std::vector<int> all = mpi_broadcast(todo);
+    const MpiPlace& p = mpi_place();
+    report.failed.clear();
+    for (size_t j = static_cast<size_t>(p.rank); j < all.size(); j += static_cast<size_t>(p.size))
+      report.failed.push_back(all[j]);
+    workers = 1;
+  }
   for (int attempt = 0; attempt < attempts && !report.failed.empty(); ++attempt) {
     PoolReport run = run_worker_pool(workers, report.failed, setup, job, on_done);
     if (!run.first_error.empty()) report.first_error = run.first_error;
     report.failed = run.failed;
+  }
+  if (mpi_distributed()) {
+    report.failed = mpi_all_gather(report.failed);
+    std::sort(report.failed.begin(), report.failed.end());
+    const std::vector<std::string> errors =
+        mpi_all_gather(report.first_error.empty() ? "" : mpi_where() + ": " + report.first_error);
+    report.first_error.clear();
+    for (const std::string& e : errors)
+      if (report.first_error.empty() && !e.empty()) report.first_error = e;
   }
   return report;
 }

@@ -25,6 +25,9 @@ PoolReport run_worker_pool(int workers, const std::vector<int>& todo,
 // run_worker_pool up to `attempts` times: a job whose worker crashed (the infrastructure's
 // fault, not the job's) is run again. `failed` lists what still failed after the last
 // attempt; first_error is the last attempt's first error that was seen.
+// Under MPI (core/mpi.hpp) every rank calls it: rank 0's `todo` is split over the ranks (one
+// worker each), and every rank returns the whole job's failures, the first error naming the
+// rank and host where it happened; on_done sees this rank's jobs only.
 PoolReport run_worker_pool_with_retries(
     int workers, const std::vector<int>& todo, int attempts, const std::function<void()>& setup,
     const std::function<std::string(int)>& job,

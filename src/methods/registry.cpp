@@ -2,6 +2,7 @@
 #include <algorithm>
 
 #include "core/error.hpp"
+#include "core/run_lock.hpp"
 #include "data/mujoco_episode.hpp"
 #include "datasets/episode_set.hpp"
 #include "inference/policy_runner.hpp"
@@ -130,6 +131,9 @@ TrainSummary train_method(const Settings& settings, const TrainRequest& request)
   } catch (const DataError&) {
     // a missing or empty folder: the method reports it in its own order
   }
+  // One job per run folder (core/run_lock.hpp); a folder this process holds stays held.
+  RunLock lock;
+  if (!request.out_dir.empty()) lock = lock_run_folder(request.out_dir, "train");
   if (domain != kMujocoDomain) return m.train(settings, request);
   const std::vector<std::string>& family = policy_runner_methods();
   if (std::find(family.begin(), family.end(), request.method) == family.end())

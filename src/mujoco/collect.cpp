@@ -13,6 +13,8 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/progress.hpp"
+#include "core/mpi.hpp"
+#include "core/run_lock.hpp"
 #include "core/worker_pool.hpp"
 #include "data/h5_io.hpp"
 #include "mujoco/episode_note.hpp"
@@ -127,9 +129,7 @@ MujocoEpisode record_episode(const CollectOptions& o, int index) {
 CollectReport collect(const CollectOptions& o) {
   validate(o);
   { Env probe(o.env); }  // a missing model file: one line, before any worker starts
-  std::error_code ec;
-  fs::create_directories(o.out, ec);
-  if (ec) throw IoError("cannot create output folder " + o.out + ": " + ec.message());
+  const RunLock lock = lock_run_folder(o.out, "collect");  // creates the folder
   remove_stale_temporaries(o.out);
 
   std::vector<int> todo;
@@ -138,10 +138,8 @@ CollectReport collect(const CollectOptions& o) {
 
   CollectReport report;
   const auto t0 = std::chrono::steady_clock::now();
-  std::unique_ptr<Progress> progress;
-  if (!o.quiet)
-    progress = std::make_unique<Progress>("collect " + o.env, o.episodes,
-                                          o.episodes - static_cast<long>(todo.size()));
+  const std::unique_ptr<Progress> progress =
+      job_progress(o.quiet, "collect " + o.env, o.episodes, static_cast<long>(todo.size()));
   // Each episode runs in a fresh fork: its env and GL context are made there, never inherited.
   auto setup = [] {};
   auto job = [&](int i) {
@@ -157,12 +155,14 @@ CollectReport collect(const CollectOptions& o) {
   const PoolReport pool =
       run_worker_pool_with_retries(o.workers, todo, kMaxAttempts, setup, job, on_done);
   if (progress) progress->finish();
+  report.frames = mpi_sum(report.frames);  // the whole job's, under MPI
   report.recorded_now = static_cast<int>(todo.size() - pool.failed.size());
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (!pool.failed.empty()) {
-    throw Error("collection failed for " + std::to_string(pool.failed.size()) + " episode(s) (" +
-                pool.first_error + "); rerun the same command to resume");
+    throw_job_error("collection failed for " + std::to_string(pool.failed.size()) +
+                    " episode(s) (" + pool.first_error + "); rerun the same command to resume");
   }
+  if (!mpi_lead()) return report;  // under MPI rank 0 writes the manifest, last
 
   nlohmann::json episodes = nlohmann::json::array();
   for (int i = 0; i < o.episodes; ++i) {

@@ -15,6 +15,8 @@
 #include "core/error.hpp"
 #include "core/progress.hpp"
 #include "core/rng.hpp"
+#include "core/mpi.hpp"
+#include "core/run_lock.hpp"
 #include "core/worker_pool.hpp"
 #include "data/mujoco_episode.hpp"
 #include "datasets/episode_set.hpp"
@@ -237,6 +239,7 @@ EvalReport evaluate(const EvalOptions& o) {
   Checkpoint ck;
   validate(o, &ck);
   const std::string ep_dir = o.out + "/episodes";
+  const RunLock lock = lock_run_folder(o.out, "eval");
   std::error_code ec;
   fs::create_directories(ep_dir, ec);
   if (ec) throw IoError("cannot create output folder " + ep_dir + ": " + ec.message());
@@ -259,10 +262,8 @@ EvalReport evaluate(const EvalOptions& o) {
   }
   EvalReport report;
   const auto t0 = std::chrono::steady_clock::now();
-  std::unique_ptr<Progress> progress;
-  if (!o.quiet)
-    progress = std::make_unique<Progress>("eval " + o.agent + " on " + o.env, o.episodes,
-                                          o.episodes - static_cast<long>(todo.size()));
+  const std::unique_ptr<Progress> progress = job_progress(
+      o.quiet, "eval " + o.agent + " on " + o.env, o.episodes, static_cast<long>(todo.size()));
   // Each episode in a fresh fork: its env, GL context and networks are made there.
   auto job = [&](int i) {
     const json r = run_episode(o, i);
@@ -278,9 +279,12 @@ EvalReport evaluate(const EvalOptions& o) {
   const PoolReport pool =
       run_worker_pool_with_retries(std::max(1, o.workers), todo, o.max_attempts, [] {}, job, on_done);
   if (progress) progress->finish();
+  report.steps = mpi_sum(report.steps);  // the whole job's, under MPI
+  report.run_now = static_cast<int>(mpi_sum(report.run_now));
   if (!pool.failed.empty())
-    throw Error("eval failed for " + std::to_string(pool.failed.size()) + " episode(s) (" +
-                pool.first_error + "); rerun the same command to resume");
+    throw_job_error("eval failed for " + std::to_string(pool.failed.size()) + " episode(s) (" +
+                    pool.first_error + "); rerun the same command to resume");
+  if (!mpi_lead()) return report;  // under MPI rank 0 writes the summary, last
   for (int i : todo) {
     auto r = load_record(ep_dir + "/" + record_name(i));
     if (!r) throw DataError("episode record " + record_name(i) + " is missing after its run");

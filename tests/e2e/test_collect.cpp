@@ -12,6 +12,7 @@
 #include "../support/tiny_run.hpp"
 #include "collect/collect.hpp"
 #include "core/error.hpp"
+#include "core/run_lock.hpp"
 #include "data/h5_episode.hpp"
 
 namespace cd {
@@ -224,7 +225,9 @@ void expect_resume_after_kill(const std::string& extra) {
     if (is_episode_name(name)) {
       EXPECT_NO_THROW(read_episode(out + "/" + name)) << name << " is incomplete";
     } else {
-      EXPECT_TRUE(test::ends_with(name, ".tmp") || name == ".crash-injected-collect-1")
+      // The killed job's lock file stays (its flock died with it): the next job takes it over.
+      EXPECT_TRUE(test::ends_with(name, ".tmp") || name == ".crash-injected-collect-1" ||
+                  name == kRunLockName)
           << "unexpected leftover " << name;
     }
   }
@@ -236,6 +239,9 @@ void expect_resume_after_kill(const std::string& extra) {
       << resumed.out;
   EXPECT_EQ(episode_files(out).size(), static_cast<size_t>(kEpisodes));
   EXPECT_TRUE(tmp_files(out).empty()) << "temporary files left after the resumed run";
+  EXPECT_NE(resumed.err.find("taking over the lock of collect (host "), std::string::npos)
+      << resumed.err;
+  EXPECT_FALSE(test::fs::exists(out + "/" + kRunLockName)) << "released at the end";
 
   CommandResult whole = collect_cli(config, ref, kEpisodes, 1);
   ASSERT_TRUE(whole.exited && whole.exit_code == 0) << whole.describe();

@@ -1,0 +1,174 @@
+#include "core/mpi.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdlib>
+
+#include "core/error.hpp"
+
+#ifdef CD_HAVE_MPI
+#define OMPI_SKIP_MPICXX 1  // the C API only: no C++ bindings to link
+#define MPICH_SKIP_MPICXX 1
+#include <mpi.h>
+#endif
+
+namespace cd {
+
+namespace {
+
+MpiPlace place;
+bool started = false;
+pid_t mpi_pid = 0;  // the process that started MPI: a forked worker never takes part
+
+bool in_job() { return place.size > 1 && getpid() == mpi_pid; }
+
+// The launcher's world size from its environment (OpenMPI, then PMI/PMIx, Slurm's srun).
+int launcher_size() {
+  for (const char* var : {"OMPI_COMM_WORLD_SIZE", "PMIX_SIZE", "PMI_SIZE"})
+    if (const char* v = std::getenv(var)) return std::max(1, std::atoi(v));
+  return 1;
+}
+
+std::string host_name() {
+  char buf[256] = {0};
+  if (gethostname(buf, sizeof buf - 1) != 0) return "unknown";
+  return buf;
+}
+
+}  // namespace
+
+bool mpi_compiled() {
+#ifdef CD_HAVE_MPI
+  return true;
+#else
+  return false;
+#endif
+}
+
+MpiSession::MpiSession(int* argc, char*** argv) {
+  const int size = launcher_size();
+#ifdef CD_HAVE_MPI
+  if (size > 1 || std::getenv("OMPI_COMM_WORLD_SIZE")) {
+    MPI_Init(argc, argv);
+    MPI_Comm_rank(MPI_COMM_WORLD, &place.rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &place.size);
+    mpi_pid = getpid();
+    started = true;
+  }
+#else
+  (void)argc;
+  (void)argv;
+  if (size > 1)
+    throw ConfigError("started by mpirun with " + std::to_string(size) +
+                      " ranks, but this build has no MPI (install libopenmpi-dev and rebuild)");
+#endif
+}
+
+MpiSession::~MpiSession() {
+#ifdef CD_HAVE_MPI
+  if (started && getpid() == mpi_pid) MPI_Finalize();
+#endif
+}
+
+const MpiPlace& mpi_place() { return place; }
+
+std::string mpi_where() {
+  return "rank " + std::to_string(place.rank) + " of " + std::to_string(place.size) + " on " +
+         host_name();
+}
+
+std::vector<int> mpi_broadcast(const std::vector<int>& values) {
+#ifdef CD_HAVE_MPI
+  if (in_job()) {
+    int n = static_cast<int>(values.size());
+    MPI_Bcast(&n, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    std::vector<int> out = place.rank == 0 ? values : std::vector<int>(n);
+    MPI_Bcast(out.data(), n, MPI_INT, 0, MPI_COMM_WORLD);
+    return out;
+  }
+#endif
+  return values;
+}
+
+std::string mpi_broadcast(const std::string& text) {
+#ifdef CD_HAVE_MPI
+  if (in_job()) {
+    std::vector<int> chars(text.begin(), text.end());
+    std::vector<int> out = mpi_broadcast(chars);
+    return std::string(out.begin(), out.end());
+  }
+#endif
+  return text;
+}
+
+long mpi_sum(long value) {
+#ifdef CD_HAVE_MPI
+  if (in_job()) {
+    long total = 0;
+    MPI_Allreduce(&value, &total, 1, MPI_LONG, MPI_SUM, MPI_COMM_WORLD);
+    return total;
+  }
+#endif
+  return value;
+}
+
+std::vector<int> mpi_all_gather(const std::vector<int>& values) {
+#ifdef CD_HAVE_MPI
+  if (in_job()) {
+    int n = static_cast<int>(values.size());
+    std::vector<int> counts(place.size), offsets(place.size, 0);
+    MPI_Allgather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, MPI_COMM_WORLD);
+    int total = 0;
+    for (int r = 0; r < place.size; ++r) {
+      offsets[r] = total;
+      total += counts[r];
+    }
+    std::vector<int> out(total);
+    MPI_Allgatherv(values.data(), n, MPI_INT, out.data(), counts.data(), offsets.data(), MPI_INT,
+                   MPI_COMM_WORLD);
+    return out;
+  }
+#endif
+  return values;
+}
+
+std::vector<std::string> mpi_all_gather(const std::string& text) {
+#ifdef CD_HAVE_MPI
+  if (in_job()) {
+    // Each rank's text, terminated by -1 (a char is never -1 as an unsigned byte).
+    std::vector<int> mine;
+    for (unsigned char c : text) mine.push_back(c);
+    mine.push_back(-1);
+    std::vector<std::string> out(1);
+    for (int c : mpi_all_gather(mine)) {
+      if (c < 0) out.emplace_back();
+      else out.back().push_back(static_cast<char>(c));
+    }
+    out.pop_back();
+    return out;
+  }
+#endif
+  return {text};
+}
+
+void throw_job_error(const std::string& what) {
+  if (place.rank == 0) throw Error(what);
+  throw MpiEchoError(what);
+}
+
+void mpi_barrier() {
+#ifdef CD_HAVE_MPI
+  if (in_job()) MPI_Barrier(MPI_COMM_WORLD);
+#endif
+}
+
+void mpi_abort(int code) {
+#ifdef CD_HAVE_MPI
+  if (in_job()) MPI_Abort(MPI_COMM_WORLD, code);
+#else
+  (void)code;
+#endif
+}
+
+}  // namespace cd
