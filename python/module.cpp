@@ -416,7 +416,7 @@ py::object evaluate(const py::object& policy, const std::string& suite, const st
                     const std::optional<std::string>& label, const std::string& checkpoint,
                     const std::optional<std::string>& config,
                     const std::optional<py::dict>& settings, std::optional<int> trials,
-                    int history, int history_stride, bool quiet) {
+                    int history, int history_stride, bool quiet, bool record) {
   claim_world("evaluate");
   if (out.empty()) throw ConfigError("evaluate: out (the results folder) is required");
   if (history < 1 || history_stride < 1)
@@ -431,6 +431,7 @@ py::object evaluate(const py::object& policy, const std::string& suite, const st
   EvalRequest req;
   req.in_process = true;
   req.quiet = quiet;
+  req.record = record;  // eval --record: episodes/episode_NNNNNN.h5 as the agent drove
   if (py::isinstance<py::str>(policy)) {
     req.agent = policy.cast<std::string>();
     req.checkpoint = checkpoint;
@@ -674,7 +675,7 @@ PYBIND11_MODULE(_core, m) {
   m.def("evaluate", &evaluate, py::arg("policy"), py::arg("suite"), py::arg("out"),
         py::arg("label") = py::none(), py::arg("checkpoint") = "", py::arg("config") = py::none(),
         py::arg("settings") = py::none(), py::arg("trials") = py::none(), py::arg("history") = 1,
-        py::arg("history_stride") = 1, py::arg("quiet") = true);
+        py::arg("history_stride") = 1, py::arg("quiet") = true, py::arg("record") = false);
   m.def("load_episode", &load_episode, py::arg("path"));
   m.def("suite_names", &builtin_suite_names);
   m.def("town_names", &town_names);

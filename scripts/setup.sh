@@ -17,7 +17,12 @@ packages=(
   python3 python3-dev python3-numpy python3-h5py python3-statsmodels python3-torch
   pybind11-dev python3-pybind11
   libopenmpi-dev openmpi-bin
+  chromium
 )
+
+# The HTML report's browser test drives Debian's chromium with playwright-core (npm, pinned in
+# tests/browser/package-lock.json); Node.js from Debian when the machine has none.
+command -v node >/dev/null && command -v npm >/dev/null || packages+=(nodejs npm)
 
 missing=()
 for p in "${packages[@]}"; do
@@ -25,7 +30,16 @@ for p in "${packages[@]}"; do
   [[ "$status" == "install ok installed" ]] || missing+=("$p")
 done
 
+browser_deps() {
+  local dir
+  dir="$(dirname "$0")/../tests/browser"
+  [[ -d $dir/node_modules/playwright-core ]] && return 0
+  echo "setup: installing the browser test's playwright-core (npm ci in tests/browser)"
+  (cd "$dir" && npm ci --no-audit --no-fund --loglevel=error)
+}
+
 if [[ ${#missing[@]} -eq 0 ]]; then
+  browser_deps
   exit 0
 fi
 
@@ -38,3 +52,4 @@ fi
 export DEBIAN_FRONTEND=noninteractive
 $sudo apt-get update -q
 $sudo apt-get install -y -q --no-install-recommends "${missing[@]}"
+browser_deps

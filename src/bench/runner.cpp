@@ -11,10 +11,13 @@
 
 #include <nlohmann/json.hpp>
 
+#include "agents/observation_feed.hpp"
+#include "collect/expert_episode.hpp"
 #include "core/atomic_file.hpp"
+#include "core/bitplanes.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
-#include "agents/observation_feed.hpp"
+#include "data/h5_episode.hpp"
 #include "core/progress.hpp"
 #include "core/mpi.hpp"
 #include "core/run_lock.hpp"
@@ -27,13 +30,18 @@ namespace fs = std::filesystem;
 
 namespace cd {
 
-namespace {
-
 std::string episode_record_name(int index) {
   char name[40];
   std::snprintf(name, sizeof name, "episode_%06d.json", index);
   return name;
 }
+
+std::string episode_recording_name(int index) {
+  const std::string json = episode_record_name(index);
+  return json.substr(0, json.size() - 5) + ".h5";
+}
+
+namespace {
 
 // A finished episode's record, or nothing when it is missing or damaged (run again).
 bool load_record(const std::string& path, EpisodeResult* out) {
@@ -63,7 +71,7 @@ std::string fmt(const char* f, double x) {
 }  // namespace
 
 EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Settings& settings,
-                          LoopStats* stats, std::string* trace_csv) {
+                          LoopStats* stats, std::string* trace_csv, EpisodeData* record) {
   const double dt = settings.world.dt;
   world.reset(task);
   agent.begin_episode();
@@ -83,12 +91,26 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
   }
 
   EpisodeScorer scorer(world, task, dt);
+  FrameBytes seen;  // the agent's current frame, packed, for the recording
+  if (record) {
+    begin_recording(world, *record);
+    seen.resize(record->frame_pixels());
+  }
   long n = 0;
   const auto wall0 = std::chrono::steady_clock::now();
   while (sr.outcome == Outcome::Running) {
     feed.push();
     const Observation& obs = feed.observe();
     Control c = agent.act(obs);
+    if (record) {
+      if (!obs.frames.empty()) {
+        pack_planes(obs.frames.back(), record->frame_pixels(), record->channels, seen.data());
+        record_state(world, *record, seen.data());
+      } else {
+        record_state(world, *record);
+      }
+      record_action(*record, c, world.free_lateral());
+    }
     if (trace_csv) {
       // A free-steering ego adds its steer, pose (network frame) and lane errors.
       const bool free = world.free_lateral();
@@ -251,13 +273,28 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
     auto agent = new_agent(world.get());
     LoopStats stats;
     std::string trace;
-    EpisodeResult r = run_episode(*world, *agent, task_of(i), settings, &stats,
-                                  req.trace ? &trace : nullptr);
+    EpisodeData recording;
+    const Task task = task_of(i);
+    EpisodeResult r = run_episode(*world, *agent, task, settings, &stats,
+                                  req.trace ? &trace : nullptr, req.record ? &recording : nullptr);
     if (req.trace) {
       std::string name = episode_record_name(i);
       write_file_atomic(ep_dir + "/" + name.substr(0, name.size() - 5) + ".trace.csv", trace);
     }
     identify(r, i);
+    if (req.record) {  // before the episode's record, which commits the episode
+      EpisodeMeta meta = recording_meta(*world, settings);
+      meta.suite = suite.name;
+      meta.seed = task.traffic_seed;
+      meta.outcome = r.outcome;
+      meta.extra["agent"] = agent_name;
+      meta.extra["label"] = label;
+      meta.extra["episode_index"] = std::to_string(i);
+      meta.extra["task"] = std::to_string(r.task);
+      meta.extra["trial"] = std::to_string(r.trial);
+      meta.extra["action_source"] = "agent";
+      write_episode(ep_dir + "/" + episode_recording_name(i), meta, recording);
+    }
     write_file_atomic(ep_dir + "/" + episode_record_name(i), episode_to_json(r).dump() + "\n");
     inject_crash("eval-recorded", i, out, CrashScope::ProcessGroup);
     return std::to_string(stats.steps) + " " + r.outcome;

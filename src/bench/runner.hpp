@@ -12,6 +12,7 @@
 #include "agents/agent.hpp"
 #include "bench/metrics.hpp"
 #include "bench/suite.hpp"
+#include "data/episode.hpp"
 #include "world/world.hpp"
 
 namespace cd {
@@ -22,6 +23,10 @@ struct EvalRequest {
   std::string label;       // row name in tables; default: the agent name
   bool quiet = false;
   bool trace = false;      // also write a per-step CSV beside each episode record
+  // Also record each episode as the agent drove it, in the HDF5 layout of collect (SPEC
+  // section 2), beside its record: the frames the agent saw (the world's BEV for an agent
+  // without frames), speed, the agent's controls as `action`, command, pose, causes.
+  bool record = false;
   // Set: makes the agent of every episode in place of make_agent(agent, checkpoint) (a Python
   // policy); `agent` and `checkpoint` still name it in run.json.
   std::function<std::unique_ptr<Agent>(const Settings&, const World*)> make;
@@ -66,9 +71,15 @@ class EpisodeScorer {
 // holds the ego still for the history prefill, then lets the agent drive until success,
 // collision or timeout, and classifies the outcome. With trace_csv, appends one CSV line per
 // agent step (time, speed, path free, light state and distance, lead distance, command,
-// throttle, brake, target speed).
+// throttle, brake, target speed). With `record`, fills it with one recorded step per agent
+// step (collect/expert_episode.hpp's layout; the agent's controls as the action).
 EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Settings& settings,
-                          LoopStats* stats = nullptr, std::string* trace_csv = nullptr);
+                          LoopStats* stats = nullptr, std::string* trace_csv = nullptr,
+                          EpisodeData* record = nullptr);
+
+// The file names of episode i's record, trace and recording in an eval folder's episodes/.
+std::string episode_record_name(int index);    // episode_000012.json
+std::string episode_recording_name(int index);  // episode_000012.h5
 
 // Runs the suite settings.eval.suite into settings.eval.out (settings.world.town and traffic
 // are taken from the suite). Throws ConfigError when the folder holds another run.

@@ -17,7 +17,7 @@ namespace {
 struct EvalArgs {
   std::string config, agent, checkpoint, suite, out, label, sensor, cim_path;
   int workers = 0, trials = 0;
-  bool list = false, quiet = false, trace = false;
+  bool list = false, quiet = false, trace = false, record = false;
   // MuJoCo-Image (--env)
   std::string env;
   int episodes = 0, max_steps = 0;
@@ -31,7 +31,8 @@ void eval_mujoco(const EvalArgs& a) {
                                     {a.trials > 0, "--trials"},
                                     {!a.sensor.empty(), "--sensor"},
                                     {!a.cim_path.empty(), "--cim-path"},
-                                    {a.trace, "--trace"}}) {
+                                    {a.trace, "--trace"},
+                                    {a.record, "--record"}}) {
     if (given) throw ConfigError(std::string(flag) + " is a driving option; it does not apply with --env");
   }
   const Settings s = settings_from(a.config);
@@ -110,6 +111,10 @@ void add_eval(CLI::App& app) {
       ->needs(env);
   sub->add_flag("--list-suites", a->list, "list the built-in suites and agents");
   sub->add_flag("--quiet,-q", a->quiet, "no progress output");
+  sub->add_flag("--record", a->record,
+                "also record each episode as the agent drove it: episodes/episode_NNNNNN.h5 in "
+                "collect's layout (the frames the agent saw, speed, its controls, pose, causes), "
+                "for the replays of `report --html`");
   sub->add_flag("--trace", a->trace,
                 "also write episodes/episode_NNNNNN.trace.csv: one line per step (speed, path "
                 "free, light, leader, command, controls)");
@@ -130,6 +135,7 @@ void add_eval(CLI::App& app) {
     req.label = a->label;
     req.quiet = a->quiet;
     req.trace = a->trace;
+    req.record = a->record;
     EvalReport r = run_eval(s, req);
     if (!mpi_lead()) return;  // under MPI rank 0 reports the job
     std::printf("%s", results_table(r.results).c_str());

@@ -1,12 +1,15 @@
+#include <filesystem>
 #include <chrono>
 #include <cstdio>
 #include <map>
 
+#include "bench/html_report.hpp"
 #include "bench/report.hpp"
 #include "bench/runner.hpp"
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "collect/collect.hpp"
+#include "core/atomic_file.hpp"
 #include "core/progress.hpp"
 #include "methods/method.hpp"
 #include "train/request.hpp"
@@ -75,19 +78,26 @@ void add_quickstart(CLI::App& app) {
       EvalRequest req;
       req.agent = agent;
       req.checkpoint = checkpoint;
+      req.record = true;  // the replays of report.html
       run_eval(e, req);
       runs.push_back(e.eval.out);
     }
     std::vector<RunResult> results;
     for (const auto& f : find_result_files(runs)) results.push_back(load_result(f));
-    std::printf("\n%s", render_markdown(build_report(results),
-                                        default_metric_sets(results)).c_str());
+    const std::string markdown = render_markdown(build_report(results), default_metric_sets(results));
+    std::printf("\n%s", markdown.c_str());
+    // The page beside the run's folders: tables, charts and replays of the first failures.
+    const std::string page =
+        (std::filesystem::path(eval_root).parent_path() / "report.html").string();
+    write_file_atomic(page, render_html_report(results, markdown, HtmlReportOptions{}));
     const double secs =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::printf("\nresults: %s/<agent>/results.json; `causaldrive report %s` prints the tables "
                 "again. Selected causes: %s/causes.json. Total time %s.\n",
                 eval_root.c_str(), eval_root.c_str(), cim.out_dir.c_str(),
                 format_duration(secs).c_str());
+    std::printf("report: %s (tables, charts and replays of the first failures; open it in a "
+                "browser)\n", page.c_str());
   });
 }
 

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "bench/html_report.hpp"
 #include "bench/report.hpp"
 #include "cli/commands.hpp"
 #include "core/atomic_file.hpp"
@@ -18,7 +19,9 @@ namespace {
 
 struct ReportArgs {
   std::vector<std::string> run_dirs;
-  std::string metrics = "all", csv, markdown;
+  std::string metrics = "all", csv, markdown, html;
+  std::vector<int> episodes;
+  int replay_frames = 300;
 };
 
 // write_file_atomic, with filesystem errors (e.g. a parent that is a file) as IoError.
@@ -51,6 +54,19 @@ void add_report(CLI::App& app) {
       ->type_name("FILE");
   sub->add_option("--markdown", args->markdown, "also write the printed Markdown to this file")
       ->type_name("FILE");
+  sub->add_option("--html", args->html,
+                  "also write one self-contained HTML page: the tables, charts of success / "
+                  "collision / inertia per agent and suite, and replays of episodes recorded by "
+                  "`eval --record`")
+      ->type_name("FILE");
+  sub->add_option("--episodes", args->episodes,
+                  "with --html: replay these episode indices of every run (default: the first "
+                  "collision, inertia and off-road episode of each run)")
+      ->delimiter(',')
+      ->type_name("I,J,...");
+  sub->add_option("--replay-frames", args->replay_frames,
+                  "with --html: frames per replay at most; a longer episode shows every k-th step")
+      ->check(CLI::PositiveNumber);
   sub->callback([args] {
     // Validated here rather than by CLI11 so that every user error is one line and exit code 1.
     std::vector<MetricSet> sets = parse_metric_sets(args->metrics);
@@ -68,6 +84,14 @@ void add_report(CLI::App& app) {
     std::string markdown = render_markdown(table, sets);
     if (!args->csv.empty()) write_output("--csv", args->csv, render_csv(table, sets));
     if (!args->markdown.empty()) write_output("--markdown", args->markdown, markdown);
+    if (!args->html.empty()) {
+      HtmlReportOptions o;
+      o.episodes = args->episodes;
+      o.max_frames = args->replay_frames;
+      write_output("--html", args->html, render_html_report(runs, markdown, o));
+    } else if (!args->episodes.empty()) {
+      throw ConfigError("--episodes chooses the replays of --html; give --html FILE");
+    }
     std::fwrite(markdown.data(), 1, markdown.size(), stdout);
     std::fflush(stdout);
   });

@@ -42,19 +42,58 @@ Task collect_task(World& world, const CollectSettings& cs, uint64_t seed) {
 ExpertRecorder::ExpertRecorder(World& world, const Settings& settings)
     : world_(world), settings_(settings), expert_(settings.expert) {}
 
-void ExpertRecorder::begin(EpisodeData& d) const {
-  const BevRenderer& bev = world_.renderer();
+void begin_recording(const World& world, EpisodeData& d) {
+  const BevRenderer& bev = world.renderer();
   d = EpisodeData{};
   d.channels = kBevChannelCount;
   d.height = bev.config().height;
   d.width = bev.config().width;
-  d.action_dim = world_.free_lateral() ? 3 : 2;  // + steer when the ego steers
+  d.action_dim = world.free_lateral() ? 3 : 2;  // + steer when the ego steers
   for (const auto& name : cause_names()) d.causes[name];  // the series record_causes fills
 }
 
-Control ExpertRecorder::record_step(EpisodeData& d, Rng* augment) const {
-  size_t at = d.bev_packed.size();
+void record_state(const World& world, EpisodeData& d, const uint8_t* packed_frame) {
+  const size_t at = d.bev_packed.size();
   d.bev_packed.resize(at + d.frame_pixels());
+  if (packed_frame)
+    std::copy(packed_frame, packed_frame + d.frame_pixels(), d.bev_packed.begin() + at);
+  else
+    world.render_packed(d.bev_packed.data() + at);
+  if (world.free_lateral()) {
+    d.lateral_error.push_back(static_cast<float>(world.road_contact().lateral_error));
+    d.heading_error.push_back(static_cast<float>(world.road_contact().heading_error));
+  }
+  const EgoState& ego = world.ego();
+  d.speed.push_back(static_cast<float>(ego.speed));
+  d.command.push_back(world.command());
+  d.pose.insert(d.pose.end(), {static_cast<float>(ego.pose.pos.x),
+                               static_cast<float>(ego.pose.pos.y),
+                               static_cast<float>(ego.pose.heading)});
+  record_causes(world.truth(), d);
+}
+
+void record_action(EpisodeData& d, const Control& c, bool steers) {
+  d.action.insert(d.action.end(), {static_cast<float>(c.throttle), static_cast<float>(c.brake)});
+  if (steers) d.action.push_back(static_cast<float>(c.steer));
+}
+
+EpisodeMeta recording_meta(const World& world, const Settings& settings) {
+  EpisodeMeta meta;
+  meta.town = network_label(settings.world.town);
+  meta.dt = settings.world.dt;
+  meta.metres_per_pixel = world.renderer().config().metres_per_pixel;
+  for (const auto& n : bev_channel_names()) meta.channels.push_back(n);
+  meta.action_names = {"throttle", "brake"};
+  if (world.free_lateral()) meta.action_names.push_back("steer");
+  meta.extra["traffic"] = settings.world.traffic;
+  meta.extra["command_codes"] = "0 follow, 1 left, 2 right, 3 straight";
+  meta.extra["tl_state_codes"] = "0 none, 1 red, 2 yellow, 3 green, 4 green-yield";
+  return meta;
+}
+
+void ExpertRecorder::begin(EpisodeData& d) const { begin_recording(world_, d); }
+
+Control ExpertRecorder::record_step(EpisodeData& d, Rng* augment) const {
   // The lateral augmentation: this frame from a shifted, rotated pose, with the steer that
   // corrects it as the label.
   const AugmentSettings& aug = settings_.collect.augment;
@@ -72,26 +111,16 @@ Control ExpertRecorder::record_step(EpisodeData& d, Rng* augment) const {
   if (augmented) {
     BevScene scene = world_.scene();
     scene.ego = seen;
-    world_.renderer().render_packed(scene, d.bev_packed.data() + at);
+    FrameBytes frame(d.frame_pixels());
+    world_.renderer().render_packed(scene, frame.data());
+    record_state(world_, d, frame.data());
   } else {
-    world_.render_packed(d.bev_packed.data() + at);
+    record_state(world_, d);
   }
-  if (world_.free_lateral()) {
-    d.lateral_error.push_back(static_cast<float>(world_.road_contact().lateral_error));
-    d.heading_error.push_back(static_cast<float>(world_.road_contact().heading_error));
-  }
-  const EgoState& ego = world_.ego();
-  d.speed.push_back(static_cast<float>(ego.speed));
-  d.command.push_back(world_.command());
-  d.pose.insert(d.pose.end(), {static_cast<float>(ego.pose.pos.x),
-                               static_cast<float>(ego.pose.pos.y),
-                               static_cast<float>(ego.pose.heading)});
-  record_causes(world_.truth(), d);
-  Control label = expert_.act(world_);
-  d.action.insert(d.action.end(),
-                  {static_cast<float>(label.throttle), static_cast<float>(label.brake)});
-  if (world_.free_lateral())
-    d.action.push_back(static_cast<float>(augmented ? steer_towards_path(world_, seen) : label.steer));
+  const Control label = expert_.act(world_);
+  Control recorded = label;
+  if (augmented) recorded.steer = steer_towards_path(world_, seen);
+  record_action(d, recorded, world_.free_lateral());
   return label;  // what the ego executes: the expert's own steer, never the augmented label
 }
 
@@ -103,7 +132,6 @@ EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, Epi
   if (driver) driver->begin_episode(world_, seed);
 
   begin(d);
-  const BevRenderer& bev = world_.renderer();
   const long expected = static_cast<long>(task.timeout_s / settings_.world.dt) + 1;
   d.bev_packed.reserve(d.frame_pixels() * static_cast<size_t>(expected));
 
@@ -153,21 +181,14 @@ EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, Epi
     r = world_.step(executed);
   }
 
-  meta = EpisodeMeta{};
-  meta.town = network_label(settings_.world.town);
+  meta = recording_meta(world_, settings_);
   meta.suite = "collect-" + settings_.world.traffic;
   meta.seed = seed;
-  meta.dt = settings_.world.dt;
-  meta.metres_per_pixel = bev.config().metres_per_pixel;
-  for (const auto& n : bev_channel_names()) meta.channels.push_back(n);
-  meta.action_names = {"throttle", "brake"};
-  if (world_.free_lateral()) meta.action_names.push_back("steer");
   meta.outcome = outcome_name(r.outcome);
   std::string route;
   for (const auto& e : task.route) route += (route.empty() ? "" : " ") + e;
   char buf[64];
   meta.extra["route"] = route;
-  meta.extra["traffic"] = settings_.world.traffic;
   std::snprintf(buf, sizeof buf, "%.3f", task.route_length);
   meta.extra["route_length_m"] = buf;
   std::snprintf(buf, sizeof buf, "%.3f", world_.counters().distance);
@@ -177,8 +198,6 @@ EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, Epi
   if (!r.collided_with.empty()) meta.extra["collided_with"] = r.collided_with;
   meta.extra["noise"] = ns.enabled && !driver ? "on" : "off";
   if (driver) meta.extra["driver"] = driver->describe();
-  meta.extra["command_codes"] = "0 follow, 1 left, 2 right, 3 straight";
-  meta.extra["tl_state_codes"] = "0 none, 1 red, 2 yellow, 3 green, 4 green-yield";
 
   EpisodeSummary s;
   s.index = index;

@@ -26,6 +26,19 @@ struct EpisodeSummary {
 // Names of the recorded causes/ series, in file order.
 const std::vector<std::string>& cause_names();
 
+// A recording of a World, step by step (collect's expert episodes, eval --record's agent
+// episodes): `data` emptied and shaped for this world's frames (+ steer when the ego steers).
+void begin_recording(const World& world, EpisodeData& data);
+// Appends the current state: the BEV frame (`packed_frame`, H*W bytes of channel bits, when
+// given: what an agent saw or an augmented view; else the world's own), a free ego's lane
+// errors, speed, command, pose and the causes. The action is appended apart (record_action).
+void record_state(const World& world, EpisodeData& data, const uint8_t* packed_frame = nullptr);
+// Appends one action: throttle, brake and, when `steers`, steer.
+void record_action(EpisodeData& data, const Control& control, bool steers);
+// The attributes every recording of this world shares: town, dt, metres per pixel, channel
+// and action names, traffic, the code tables; the caller adds suite, seed, outcome, the rest.
+EpisodeMeta recording_meta(const World& world, const Settings& settings);
+
 // What drives a recorded episode in place of the expert (dagger's closed-loop rollouts): it is
 // told the world when the episode starts and, every step, the expert's label; it returns the
 // executed control. The recorded labels stay the expert's; noise injection is off.

@@ -17,4 +17,14 @@ inline void unpack_planes(const uint8_t* packed, size_t pixels, int channels, ui
   }
 }
 
+// The inverse: `channels` planes of `pixels` bytes (non-zero = on) into one byte per pixel.
+inline void pack_planes(const uint8_t* planes, size_t pixels, int channels, uint8_t* out) {
+  for (size_t i = 0; i < pixels; ++i) out[i] = 0;
+  for (int c = 0; c < channels; ++c) {
+    const uint8_t* plane = planes + static_cast<size_t>(c) * pixels;
+    for (size_t i = 0; i < pixels; ++i)
+      if (plane[i]) out[i] = static_cast<uint8_t>(out[i] | (1u << c));
+  }
+}
+
 }  // namespace cd

@@ -71,11 +71,7 @@ PackedEpisode pack(const std::string& path, const EpisodeData& d) {
     p.frame_data.assign(static_cast<size_t>(p.frames) * pixels, 0);
     for (int t = 0; t < p.frames; ++t) {
       const uint8_t* frame = d.bev.data() + static_cast<size_t>(t) * d.frame_bytes();
-      uint8_t* out = p.frame_data.data() + static_cast<size_t>(t) * pixels;
-      for (int c = 0; c < d.channels; ++c) {
-        const uint8_t* plane = frame + static_cast<size_t>(c) * pixels;
-        for (size_t i = 0; i < pixels; ++i) out[i] |= static_cast<uint8_t>((plane[i] != 0) << c);
-      }
+      pack_planes(frame, pixels, d.channels, p.frame_data.data() + static_cast<size_t>(t) * pixels);
     }
   }
   p.speed = d.speed;

@@ -31,6 +31,12 @@ TEST(Quickstart, RunsTheWholeChainAndResumes) {
   EXPECT_TRUE(fs::exists(dir / "train/cim/causes.json"));
   EXPECT_TRUE(fs::exists(dir / "train/bc-oh/best.pt"));
   EXPECT_EQ(test::list_dir(dir / "data").size(), 3u) << "2 episodes and collect.json";
+  // The page beside the evaluations, its path printed; every evaluated episode recorded.
+  EXPECT_NE(r.out.find("report: " + (dir / "report.html")), std::string::npos) << r.out;
+  const std::string page = test::read_text(dir / "report.html");
+  EXPECT_NE(page.find("<table class=\"metrics\">"), std::string::npos);
+  EXPECT_NE(page.find("<h2 id=\"replays\">"), std::string::npos);
+  EXPECT_TRUE(fs::exists(dir / "eval/cs/episodes/episode_000000.h5"));
 
   // A second run finds everything done and prints the same table.
   const std::string before = test::read_text(dir / "eval/cim/results.json");
