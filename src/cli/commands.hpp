@@ -18,5 +18,6 @@ void add_bench(CLI::App& app);
 void add_quickstart(CLI::App& app);
 void add_granger(CLI::App& app);
 void add_train_expert(CLI::App& app);
+void add_config(CLI::App& app);
 
 }  // namespace cd::cli

@@ -87,6 +87,7 @@ int main(int argc, char** argv) {
   cd::cli::add_granger(app);
   cd::cli::add_report(app);
   cd::cli::add_bench(app);
+  cd::cli::add_config(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

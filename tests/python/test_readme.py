@@ -1,4 +1,4 @@
-"""The README's Python example runs as written (from a scratch folder, against the build)."""
+"""The Python example of docs/python.md runs as written (from a scratch folder, against the build)."""
 import os
 import re
 import subprocess
@@ -12,12 +12,12 @@ SOURCE = os.environ.get("CAUSALDRIVE_SOURCE_DIR",
 
 
 def readme_example():
-    with open(os.path.join(SOURCE, "README.md")) as f:
+    with open(os.path.join(SOURCE, "docs", "python.md")) as f:
         text = f.read()
     m = re.search(r"<!-- python-example: begin -->\s*```python\n(.*?)```\s*"
                   r"<!-- python-example: end -->", text, re.S)
     if not m:
-        raise AssertionError("README.md has no python-example block")
+        raise AssertionError("docs/python.md has no python-example block")
     return m.group(1)
 
 

@@ -1,0 +1,78 @@
+"""The documentation: the README fits in 250 lines; every relative link of the README, the
+docs/ pages and ARCHITECTURE.md resolves (the file, and a #anchor to one of its headings, by
+GitHub's rule); docs/configuration.md is what `causaldrive config --reference` prints now."""
+import os
+import re
+import subprocess
+import unittest
+
+from support import BIN
+
+ROOT = os.path.abspath(os.environ.get("CAUSALDRIVE_SOURCE_DIR",
+                                      os.path.join(os.path.dirname(__file__), "..", "..")))
+
+
+def pages():
+    out = [os.path.join(ROOT, "README.md"), os.path.join(ROOT, "ARCHITECTURE.md")]
+    docs = os.path.join(ROOT, "docs")
+    out += sorted(os.path.join(docs, f) for f in os.listdir(docs) if f.endswith(".md"))
+    return out
+
+
+def without_code(text):
+    """The text outside fenced blocks and `inline code`."""
+    text = re.sub(r"```.*?```", "", text, flags=re.S)
+    return re.sub(r"`[^`\n]*`", "", text)
+
+
+def slug(heading):
+    """GitHub's anchor of a heading: lower case, punctuation dropped, spaces to hyphens."""
+    s = heading.strip().lower()
+    s = re.sub(r"[^\w\- ]", "", s)
+    return s.replace(" ", "-")
+
+
+def anchors(path):
+    with open(path, encoding="utf-8") as f:
+        text = re.sub(r"```.*?```", "", f.read(), flags=re.S)
+    return {slug(m.group(1)) for m in re.finditer(r"^#+ (.*)$", text, re.M)}
+
+
+class Docs(unittest.TestCase):
+    def test_the_readme_fits_in_250_lines(self):
+        with open(os.path.join(ROOT, "README.md"), encoding="utf-8") as f:
+            self.assertLessEqual(len(f.read().splitlines()), 250)
+
+    def test_every_relative_link_resolves(self):
+        checked = 0
+        for page in pages():
+            with open(page, encoding="utf-8") as f:
+                text = without_code(f.read())
+            for target in re.findall(r"\]\(([^)\s]+)\)", text):
+                if re.match(r"[a-z]+:", target):
+                    continue  # http(s), mailto: not fetched
+                path, _, anchor = target.partition("#")
+                dest = os.path.normpath(os.path.join(os.path.dirname(page), path)) if path else page
+                rel = os.path.relpath(page, ROOT)
+                self.assertTrue(os.path.exists(dest), "%s: %s does not exist" % (rel, target))
+                if anchor:
+                    self.assertIn(anchor, anchors(dest), "%s: no heading #%s in %s" %
+                                  (rel, anchor, os.path.relpath(dest, ROOT)))
+                checked += 1
+        self.assertGreater(checked, 20)
+
+    def test_the_configuration_reference_is_generated(self):
+        r = subprocess.run([BIN, "config", "--reference"], capture_output=True, text=True)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(ROOT, "docs", "configuration.md"), encoding="utf-8") as f:
+            self.assertEqual(f.read(), r.stdout,
+                             "docs/configuration.md is stale: regenerate it with "
+                             "`build/causaldrive config --reference > docs/configuration.md`")
+        # It names every table and key a config may hold, with the built-in defaults.
+        self.assertIn("## [train]", r.stdout)
+        self.assertIn("| `situation_weights` | text | `\"none\"` | `\"none\"`, `\"balanced\"` |",
+                      r.stdout)
+
+
+if __name__ == "__main__":
+    unittest.main()
