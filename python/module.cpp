@@ -509,7 +509,9 @@ class PyMujocoEnv {
     if (!expert_) {
       mj::PlannerOptions p = mj::planner_options(settings_.mujoco);
       p.seed = derive_seed(seed_, 1);  // as collect's expert for an episode of this seed
-      expert_ = mj::make_expert(env().name(), p, settings_.mujoco.expert_policies);
+      expert_ = mj::make_expert(env().name(), p,
+                                mj::expert_policies_for(settings_.mujoco.expert_policies,
+                                                        env().name(), p));
     }
     const std::vector<double> a = expert_->act(env().state());
     py::array_t<float> out(static_cast<py::ssize_t>(a.size()));

@@ -8,6 +8,7 @@
 #include "core/error.hpp"
 #include "mujoco/collect.hpp"
 #include "mujoco/env_spec.hpp"
+#include "mujoco/expert.hpp"
 
 namespace cd::cli {
 
@@ -46,13 +47,13 @@ void collect_mujoco(const CollectArgs& a) {
   o.noise = {a.noise || m.noise.enabled, m.noise.rate, m.noise.min_steps, m.noise.max_steps,
              m.noise.sigma};
   o.planner = mj::planner_options(m);  // the flags override the [mujoco] keys
-  o.expert_policies = m.expert_policies;
   if (a.planner_samples > 0) o.planner.samples = a.planner_samples;
   if (a.planner_horizon > 0) o.planner.horizon = a.planner_horizon;
   if (a.planner_iterations > 0) o.planner.iterations = a.planner_iterations;
   if (a.planner_sigma > 0) o.planner.sigma = a.planner_sigma;
   if (a.planner_temperature > 0) o.planner.temperature = a.planner_temperature;
   if (a.planner_smoothing >= 0) o.planner.smoothing = a.planner_smoothing;
+  o.expert_policies = mj::expert_policies_for(m.expert_policies, o.env, o.planner);
   const mj::CollectReport r = mj::collect(o);
   if (!mpi_lead()) return;  // under MPI rank 0 reports the job
   double mean = 0;

@@ -9,6 +9,7 @@
 #include "core/mpi.hpp"
 #include "methods/method.hpp"
 #include "mujoco/eval.hpp"
+#include "mujoco/expert.hpp"
 
 namespace cd::cli {
 
@@ -47,7 +48,7 @@ void eval_mujoco(const EvalArgs& a) {
   if (a.seed >= 0) o.seed = static_cast<uint64_t>(a.seed);
   o.max_steps = a.max_steps > 0 ? a.max_steps : s.mujoco.max_steps;
   o.planner = mj::planner_options(s.mujoco);
-  o.expert_policies = s.mujoco.expert_policies;
+  o.expert_policies = mj::expert_policies_for(s.mujoco.expert_policies, o.env, o.planner);
   o.quiet = a.quiet;
   const mj::EvalReport r = mj::evaluate(o);
   if (!mpi_lead()) return;  // under MPI rank 0 reports the job

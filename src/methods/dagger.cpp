@@ -38,6 +38,7 @@
 #include "methods/policy_family.hpp"
 #include "mujoco/collect.hpp"
 #include "mujoco/frame_policy.hpp"
+#include "mujoco/expert.hpp"
 #include "runs/checkpoint.hpp"
 #include "world/world.hpp"
 
@@ -191,7 +192,7 @@ Rollouts mujoco_rollouts(const Settings& settings, const std::string& data_dir, 
   o.height = first.height;
   o.max_steps = settings.mujoco.max_steps;
   o.planner = mj::planner_options(settings.mujoco);
-  o.expert_policies = settings.mujoco.expert_policies;
+  o.expert_policies = mj::expert_policies_for(settings.mujoco.expert_policies, o.env, o.planner);
   o.quiet = quiet;
   const std::string env = first.env;
   o.driver = [policy, env, beta] { return std::make_unique<MujocoDaggerDriver>(policy, env, beta); };

@@ -1,5 +1,7 @@
 #include "mujoco/expert.hpp"
 
+#include <filesystem>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -13,6 +15,19 @@ std::unique_ptr<Expert> make_expert(const std::string& env, const PlannerOptions
                                     const std::string& policies) {
   if (policies.empty()) return std::make_unique<PlannerExpert>(env, planner);
   return std::make_unique<PolicyExpert>(policies + "/" + env + ".pt", env);
+}
+
+std::string expert_policies_for(const std::string& setting, const std::string& env,
+                                const PlannerOptions& p) {
+  if (setting == "planner") return "";
+  if (!setting.empty()) return setting;
+  const PlannerOptions d;
+  if (p.samples != d.samples || p.horizon != d.horizon || p.iterations != d.iterations ||
+      p.sigma != d.sigma || p.temperature != d.temperature || p.smoothing != d.smoothing ||
+      p.terminal_steps != d.terminal_steps)
+    return "";  // a tuned planner was asked for
+  const std::string shipped = std::string(CD_SOURCE_DIR) + "/experts";
+  return std::filesystem::exists(shipped + "/" + env + ".pt") ? shipped : "";
 }
 
 PlannerOptions planner_options(const MujocoSettings& m) {

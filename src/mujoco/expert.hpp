@@ -49,6 +49,14 @@ PlannerOptions planner_defaults(const std::string& env, PlannerOptions options =
 // The options the [mujoco] planner_* settings give (0 / < 0: the env's default).
 PlannerOptions planner_options(const MujocoSettings& m);
 
+// The folder of expert policies the [mujoco] expert_policies setting names for `env`: "" (the
+// default) is the experts shipped with causaldrive (experts/ in the source tree) when one
+// exists for the env and `planner` is untuned (every planner_* setting and flag at its
+// default: asking for a planner setting asks for the planner), else the planner; "planner" is
+// always the planner (returned as ""); any other value is that folder.
+std::string expert_policies_for(const std::string& setting, const std::string& env,
+                                const PlannerOptions& planner);
+
 // The expert of `env`: the trained policy `policies`/<env>.pt (mj::PolicyExpert,
 // mujoco/sac.hpp) when `policies` is not empty, else the planner with `planner`'s settings.
 std::unique_ptr<Expert> make_expert(const std::string& env, const PlannerOptions& planner,
