@@ -14,6 +14,7 @@
 #include "core/error.hpp"
 #include "core/png.hpp"
 #include "data/h5_episode.hpp"
+#include "data/mujoco_episode.hpp"
 #include "sense/bev_colour.hpp"
 
 namespace cd {
@@ -191,8 +192,23 @@ json results_of(const RunResult& run) {
   }
 }
 
-// The replay of one recorded episode, as the JSON the page's script reads; or a reason why
-// there is none.
+json series(const std::string& name, const std::string& label, const std::string& colour,
+            const json& values, double range) {
+  return {{"name", name}, {"label", label}, {"colour", colour}, {"values", values},
+          {"lo", -range}, {"hi", range}};
+}
+
+double round3(double v) { return std::round(v * 1000.0) / 1000.0; }
+
+double largest(const json& values) {
+  double m = 1e-6;
+  for (const json& v : values) m = std::max(m, std::abs(v.get<double>()));
+  return m;
+}
+
+// The replay of one recorded episode, as the JSON the page's script reads (frames as PNG data
+// URIs, the steps shown, their series and causes, the failure's mark); null with *missing set
+// when the episode has no recording.
 json replay_json(const RunResult& run, const ReplayPick& pick, const HtmlReportOptions& o,
                  std::string* missing) {
   const std::string file = (fs::path(run.path).parent_path() / "episodes" /
@@ -201,55 +217,83 @@ json replay_json(const RunResult& run, const ReplayPick& pick, const HtmlReportO
     *missing = "not recorded (run eval with --record to keep its frames): " + file;
     return nullptr;
   }
-  EpisodeMeta meta;
-  const EpisodeData d = read_episode(file, &meta);
-  const long steps = static_cast<long>(d.frames());
-  const long stride = std::max<long>(1, (steps + o.max_frames - 1) / std::max(1, o.max_frames));
-  const size_t a = static_cast<size_t>(std::max(1, d.action_dim));
-  std::vector<uint8_t> planes(d.frame_bytes());
-  json frames = json::array(), time = json::array(), speed = json::array(),
-       throttle = json::array(), brake = json::array(), steer = json::array(),
-       steps_shown = json::array();
-  const std::vector<std::string> shown_causes = {"path_free", "tl_state", "lead_distance",
-                                                 "ped_on_path", "junction_distance"};
-  json causes = json::object();
-  auto round3 = [](double v) { return std::round(v * 1000.0) / 1000.0; };
-  for (long t = 0; t < steps; t += stride) {
-    d.frame_planes(static_cast<size_t>(t), planes.data());
-    const std::vector<uint8_t> rgb = bev_colour(planes.data(), d.channels, d.height, d.width);
-    frames.push_back("data:image/png;base64," + base64(encode_png(rgb, d.width, d.height, 3)));
-    steps_shown.push_back(t);
-    time.push_back(round3(static_cast<double>(t) * meta.dt));
-    speed.push_back(round3(d.speed[static_cast<size_t>(t)]));
-    throttle.push_back(round3(d.action[static_cast<size_t>(t) * a]));
-    brake.push_back(round3(a > 1 ? d.action[static_cast<size_t>(t) * a + 1] : 0.0));
-    if (a > 2) steer.push_back(round3(d.action[static_cast<size_t>(t) * a + 2]));
-    for (const std::string& c : shown_causes) {
-      auto it = d.causes.find(c);
-      if (it != d.causes.end()) causes[c].push_back(round3(it->second[static_cast<size_t>(t)]));
+  const std::string title = run.label + " on " + run.column() + ", episode " +
+                            std::to_string(pick.episode) + ": " + pick.outcome;
+  json r = {{"title", title}, {"outcome", pick.outcome}, {"file", file}, {"mark", nullptr},
+            {"mark_label", ""}};
+  json frames = json::array(), time = json::array(), shown = json::array();
+  auto keep = [&](long steps, int max_frames) {
+    return std::max<long>(1, (steps + max_frames - 1) / std::max(1, max_frames));
+  };
+  if (run.mujoco) {
+    const MujocoEpisode e = read_mujoco_episode(file);
+    const long steps = static_cast<long>(e.frames()), stride = keep(steps, o.max_frames);
+    const size_t A = static_cast<size_t>(e.action_dim);
+    std::vector<uint8_t> rgb(static_cast<size_t>(e.height) * e.width * 3);
+    const size_t plane = static_cast<size_t>(e.height) * e.width;
+    json ret = json::array();
+    std::vector<json> actions(A, json::array());
+    double sum = 0;
+    for (long t = 0; t < steps; ++t) {
+      sum += e.reward[static_cast<size_t>(t)];
+      if (t % stride) continue;
+      const uint8_t* f = e.obs.data() + static_cast<size_t>(t) * e.frame_bytes();
+      for (size_t p = 0; p < plane; ++p)  // C x H x W planes -> interleaved RGB
+        for (size_t c = 0; c < 3; ++c) rgb[p * 3 + c] = f[c * plane + p];
+      frames.push_back("data:image/png;base64," + base64(encode_png(rgb, e.width, e.height, 3)));
+      shown.push_back(t);
+      time.push_back(round3(static_cast<double>(t) * e.dt));
+      ret.push_back(round3(sum));
+      for (size_t j = 0; j < A; ++j) actions[j].push_back(round3(e.action[static_cast<size_t>(t) * A + j]));
     }
+    json list = {series("return", "return", "#4e79a7", ret, largest(ret))};
+    double arange = 1e-6;
+    for (const json& a : actions) arange = std::max(arange, largest(a));
+    static const char* colours[] = {"#59a14f", "#e15759", "#f28e2b", "#b07aa1", "#76b7b2",
+                                    "#edc948", "#ff9da7", "#9c755f"};
+    for (size_t j = 0; j < A; ++j)
+      list.push_back(series("a" + std::to_string(j), "a" + std::to_string(j), colours[j % 8],
+                            actions[j], arange));
+    r.update({{"dt", e.dt}, {"steps", steps}, {"stride", stride}, {"series", list},
+              {"causes", json::object()}});
+  } else {
+    EpisodeMeta meta;
+    const EpisodeData d = read_episode(file, &meta);
+    const long steps = static_cast<long>(d.frames()), stride = keep(steps, o.max_frames);
+    const size_t a = static_cast<size_t>(std::max(1, d.action_dim));
+    std::vector<uint8_t> planes(d.frame_bytes());
+    json speed = json::array(), throttle = json::array(), brake = json::array(),
+         steer = json::array(), causes = json::object();
+    for (long t = 0; t < steps; t += stride) {
+      const size_t u = static_cast<size_t>(t);
+      d.frame_planes(u, planes.data());
+      const std::vector<uint8_t> rgb = bev_colour(planes.data(), d.channels, d.height, d.width);
+      frames.push_back("data:image/png;base64," + base64(encode_png(rgb, d.width, d.height, 3)));
+      shown.push_back(t);
+      time.push_back(round3(static_cast<double>(t) * meta.dt));
+      speed.push_back(round3(d.speed[u]));
+      throttle.push_back(round3(d.action[u * a]));
+      brake.push_back(round3(a > 1 ? d.action[u * a + 1] : 0.0));
+      if (a > 2) steer.push_back(round3(d.action[u * a + 2]));
+      for (const char* c : {"path_free", "tl_state", "lead_distance", "ped_on_path",
+                            "junction_distance"}) {
+        auto it = d.causes.find(c);
+        if (it != d.causes.end()) causes[c].push_back(round3(it->second[u]));
+      }
+    }
+    json list = {series("speed", "speed m/s", "#4e79a7", speed, largest(speed)),
+                 series("throttle", "throttle", "#59a14f", throttle, 1.0),
+                 series("brake", "brake", "#e15759", brake, 1.0)};
+    if (a > 2) list.push_back(series("steer", "steer", "#b07aa1", steer, 1.0));
+    static const std::vector<float> none;
+    auto pf = d.causes.find("path_free");
+    const long mark = failure_step(pick.outcome, d.speed, pf == d.causes.end() ? none : pf->second);
+    r.update({{"dt", meta.dt}, {"steps", steps}, {"stride", stride}, {"series", list},
+              {"causes", causes},
+              {"mark", mark < 0 ? json(nullptr) : json(mark / stride)},
+              {"mark_label", pick.outcome == "inertia" ? "inertia starts" : pick.outcome}});
   }
-  static const std::vector<float> none;
-  auto pf = d.causes.find("path_free");
-  const long mark = failure_step(pick.outcome, d.speed, pf == d.causes.end() ? none : pf->second);
-  std::string title = run.label + " on " + run.column() + ", episode " +
-                      std::to_string(pick.episode) + ": " + pick.outcome;
-  json r = {{"title", title},
-            {"outcome", pick.outcome},
-            {"dt", meta.dt},
-            {"steps", steps},
-            {"stride", stride},
-            {"step", steps_shown},
-            {"frames", frames},
-            {"time", time},
-            {"speed", speed},
-            {"throttle", throttle},
-            {"brake", brake},
-            {"causes", causes},
-            {"mark", mark < 0 ? json(nullptr) : json(mark / stride)},
-            {"mark_label", pick.outcome == "inertia" ? "inertia starts" : pick.outcome},
-            {"file", file}};
-  if (a > 2) r["steer"] = steer;
+  r.update({{"frames", frames}, {"time", time}, {"step", shown}});
   return r;
 }
 
@@ -283,8 +327,6 @@ p.missing { color: #a00; }
 const char* kScript = R"js(
 (function () {
   const W = 640, H = 220, PAD = 24;
-  const SERIES = [["speed", "#4e79a7", "speed m/s"], ["throttle", "#59a14f", "throttle"],
-                  ["brake", "#e15759", "brake"], ["steer", "#b07aa1", "steer"]];
   const NS = "http://www.w3.org/2000/svg";
   function el(name, attrs) {
     const e = document.createElementNS(NS, name);
@@ -299,26 +341,22 @@ const char* kScript = R"js(
     const values = sec.querySelector(".values");
     const svg = sec.querySelector("svg.trace");
     slider.max = String(n - 1);
-    let top = 1;
-    for (const v of data.speed) top = Math.max(top, v);
     const x = function (i) { return PAD + (W - 2 * PAD) * (n > 1 ? i / (n - 1) : 0); };
-    // Controls on [-1, 1], speed on [0, its top]: zero is the middle line.
-    const y = function (v, key) {
-      const u = Math.max(-1, Math.min(1, key === "speed" ? v / top : v));
-      return PAD + (H - 2 * PAD) * (1 - u) / 2;
+    // Each series on its own range [lo, hi] (symmetric about zero: zero is the middle line).
+    const y = function (v, s) {
+      const u = Math.max(0, Math.min(1, (v - s.lo) / (s.hi - s.lo)));
+      return PAD + (H - 2 * PAD) * (1 - u);
     };
-    svg.appendChild(el("line", {x1: PAD, x2: W - PAD, y1: y(0, "brake"), y2: y(0, "brake"), stroke: "#ccc"}));
+    svg.appendChild(el("line", {x1: PAD, x2: W - PAD, y1: H / 2, y2: H / 2, stroke: "#ccc"}));
     let lx = PAD;
-    for (const s of SERIES) {
-      const vs = data[s[0]];
-      if (!vs) continue;
+    for (const s of data.series) {
       let pts = "";
-      for (let i = 0; i < vs.length; i++) pts += x(i).toFixed(1) + "," + y(vs[i], s[0]).toFixed(1) + " ";
-      svg.appendChild(el("polyline", {points: pts, fill: "none", stroke: s[1], "stroke-width": 1.3, "data-series": s[0]}));
-      const t = el("text", {x: lx, y: 12, fill: s[1], "font-size": 11});
-      t.textContent = s[2];
+      for (let i = 0; i < s.values.length; i++) pts += x(i).toFixed(1) + "," + y(s.values[i], s).toFixed(1) + " ";
+      svg.appendChild(el("polyline", {points: pts, fill: "none", stroke: s.colour, "stroke-width": 1.3, "data-series": s.name}));
+      const t = el("text", {x: lx, y: 12, fill: s.colour, "font-size": 11});
+      t.textContent = s.label;
       svg.appendChild(t);
-      lx += 12 + 7 * s[2].length;
+      lx += 12 + 7 * s.label.length;
     }
     if (data.mark !== null) {
       svg.appendChild(el("line", {x1: x(data.mark), x2: x(data.mark), y1: PAD / 2, y2: H - PAD / 2, class: "mark"}));
@@ -338,10 +376,8 @@ const char* kScript = R"js(
       cursor.setAttribute("x1", x(i).toFixed(1));
       cursor.setAttribute("x2", x(i).toFixed(1));
       sec.setAttribute("data-frame", String(i));
-      let text = "t " + data.time[i].toFixed(1) + " s (step " + data.step[i] + " of " + data.steps + ")\n" +
-                 "speed    " + data.speed[i].toFixed(2) + " m/s\n" +
-                 "throttle " + data.throttle[i].toFixed(3) + "\nbrake    " + data.brake[i].toFixed(3);
-      if (data.steer) text += "\nsteer    " + data.steer[i].toFixed(3);
+      let text = "t " + data.time[i].toFixed(2) + " s (step " + data.step[i] + " of " + data.steps + ")";
+      for (const s of data.series) text += "\n" + s.label.padEnd(18) + s.values[i].toFixed(3);
       for (const c in data.causes) text += "\n" + c.padEnd(18) + data.causes[c][i];
       if (data.mark !== null && i >= data.mark) text += "\n>> " + data.mark_label;
       values.textContent = text;
@@ -410,7 +446,6 @@ std::vector<ReplayPick> pick_replays(const std::vector<RunResult>& runs,
                                      const HtmlReportOptions& o) {
   std::vector<ReplayPick> picks;
   for (size_t r = 0; r < runs.size(); ++r) {
-    if (runs[r].mujoco) continue;
     const json res = results_of(runs[r]);
     const json& eps = res.at("episodes");
     auto add = [&](int i) {
@@ -420,6 +455,17 @@ std::vector<ReplayPick> pick_replays(const std::vector<RunResult>& runs,
     if (!o.episodes.empty()) {
       for (int i : o.episodes)
         if (i >= 0 && static_cast<size_t>(i) < eps.size()) add(i);
+      continue;
+    }
+    if (runs[r].mujoco) {  // MuJoCo-Image: the episode with the lowest return
+      size_t worst = 0;
+      for (size_t i = 1; i < eps.size(); ++i)
+        if (eps[i].value("return", 0.0) < eps[worst].value("return", 0.0)) worst = i;
+      if (!eps.empty() && static_cast<int>(picks.size()) < o.max_replays) {
+        char what[64];
+        std::snprintf(what, sizeof what, "lowest return, %.1f", eps[worst].value("return", 0.0));
+        picks.push_back({r, static_cast<int>(worst), what});
+      }
       continue;
     }
     for (const char* kind : {"collision", "inertia", "offroad"})

@@ -4,7 +4,8 @@
 // inline SVG charts of success / collision / inertia (and off-road for a free-steering ego)
 // per agent and suite with the seeds' spread, and replays of chosen episodes: the frames the
 // agent saw (kept by `eval --record`), play / pause / step controls, the trace beside them
-// (speed, throttle, brake, steer, causes) and the failure's moment marked. Nothing is fetched
+// (speed, throttle, brake, steer, causes; MuJoCo-Image: the return so far and the actions) and
+// the failure's moment marked. Nothing is fetched
 // when it opens: the frames are PNG data URIs, the script and style are inline.
 #include <string>
 #include <vector>
@@ -15,7 +16,8 @@ namespace cd {
 
 struct HtmlReportOptions {
   std::vector<int> episodes;  // replay these episode indices of every run; empty: the first
-                              // failure of each kind (collision, inertia, off-road) per run
+                              // failure of each kind (collision, inertia, off-road) per driving
+                              // run, the lowest return per MuJoCo-Image run
   int max_frames = 300;       // per replay at most: a longer episode shows every k-th step
   int max_replays = 10;       // on the page at most, in the order of the runs
 };
@@ -27,7 +29,8 @@ struct ReplayPick {
   std::string outcome;  // as results.json has it
 };
 
-// The episodes the page replays (driving runs only; MuJoCo-Image runs have no recording).
+// The episodes the page replays: the asked ones, or per driving run its first failure of each
+// kind, per MuJoCo-Image run its episode with the lowest return.
 std::vector<ReplayPick> pick_replays(const std::vector<RunResult>& runs,
                                      const HtmlReportOptions& options);
 

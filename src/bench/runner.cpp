@@ -30,17 +30,6 @@ namespace fs = std::filesystem;
 
 namespace cd {
 
-std::string episode_record_name(int index) {
-  char name[40];
-  std::snprintf(name, sizeof name, "episode_%06d.json", index);
-  return name;
-}
-
-std::string episode_recording_name(int index) {
-  const std::string json = episode_record_name(index);
-  return json.substr(0, json.size() - 5) + ".h5";
-}
-
 namespace {
 
 // A finished episode's record, or nothing when it is missing or damaged (run again).

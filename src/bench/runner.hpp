@@ -11,6 +11,7 @@
 
 #include "agents/agent.hpp"
 #include "bench/metrics.hpp"
+#include "bench/episode_files.hpp"
 #include "bench/suite.hpp"
 #include "data/episode.hpp"
 #include "world/world.hpp"
@@ -77,9 +78,6 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
                           LoopStats* stats = nullptr, std::string* trace_csv = nullptr,
                           EpisodeData* record = nullptr);
 
-// The file names of episode i's record, trace and recording in an eval folder's episodes/.
-std::string episode_record_name(int index);    // episode_000012.json
-std::string episode_recording_name(int index);  // episode_000012.h5
 
 // Runs the suite settings.eval.suite into settings.eval.out (settings.world.town and traffic
 // are taken from the suite). Throws ConfigError when the folder holds another run.

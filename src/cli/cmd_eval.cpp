@@ -32,8 +32,7 @@ void eval_mujoco(const EvalArgs& a) {
                                     {a.trials > 0, "--trials"},
                                     {!a.sensor.empty(), "--sensor"},
                                     {!a.cim_path.empty(), "--cim-path"},
-                                    {a.trace, "--trace"},
-                                    {a.record, "--record"}}) {
+                                    {a.trace, "--trace"}}) {
     if (given) throw ConfigError(std::string(flag) + " is a driving option; it does not apply with --env");
   }
   const Settings s = settings_from(a.config);
@@ -50,6 +49,7 @@ void eval_mujoco(const EvalArgs& a) {
   o.planner = mj::planner_options(s.mujoco);
   o.expert_policies = mj::expert_policies_for(s.mujoco.expert_policies, o.env, o.planner);
   o.quiet = a.quiet;
+  o.record = a.record;
   const mj::EvalReport r = mj::evaluate(o);
   if (!mpi_lead()) return;  // under MPI rank 0 reports the job
   std::printf("%s", mj::eval_table(r.results).c_str());

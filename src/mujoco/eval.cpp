@@ -11,6 +11,7 @@
 
 #include "bench/runner.hpp"
 #include "collect/expert_episode.hpp"
+#include "bench/episode_files.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/progress.hpp"
@@ -32,12 +33,6 @@ using nlohmann::json;
 namespace cd::mj {
 
 namespace {
-
-std::string record_name(int index) {
-  char name[40];
-  std::snprintf(name, sizeof name, "episode_%06d.json", index);
-  return name;
-}
 
 std::optional<json> load_record(const std::string& path) {
   std::error_code ec;
@@ -92,8 +87,10 @@ void validate(const EvalOptions& o, Checkpoint* ck) {
                       o.env + " has " + std::to_string(probe.action_dim()));
 }
 
-// One episode; its record (return, length, outcome, the actions the agent chose).
-json run_episode(const EvalOptions& o, int index) {
+// One episode; its record (return, length, outcome, the actions the agent chose). With `rec`,
+// also the episode as the agent drove it (eval --record): each step's frame before the action
+// (at the policy's size for a policy), state, the action executed, reward.
+json run_episode(const EvalOptions& o, int index, MujocoEpisode* rec) {
   const uint64_t seed = episode_seed(derive_seed(o.seed, kEvalStream), index);
   std::unique_ptr<FramePolicy> policy;
   EnvOptions env_options;
@@ -114,8 +111,18 @@ json run_episode(const EvalOptions& o, int index) {
   }
   Rng rng(derive_seed(seed, 3));
 
-  Frame first = env.reset(seed);
-  if (policy) policy->push(std::move(first));
+  Frame current = env.reset(seed);
+  if (policy) policy->push(rec ? current : std::move(current));
+  if (rec) {
+    *rec = MujocoEpisode{};
+    rec->env = o.env;
+    rec->seed = seed;
+    rec->dt = env.dt();
+    rec->frame_skip = env.frame_skip();
+    rec->height = env_options.height > 0 ? env_options.height : EnvOptions{}.height;
+    rec->width = env_options.width > 0 ? env_options.width : EnvOptions{}.width;
+    rec->action_dim = A;
+  }
   std::vector<double> action(static_cast<size_t>(A), 0.0);
   std::vector<float> chosen;
   double ret = 0;
@@ -134,14 +141,31 @@ json run_episode(const EvalOptions& o, int index) {
       }
       for (double v : action) chosen.push_back(static_cast<float>(v));
     }
+    if (rec) {
+      const std::vector<double> state = env.state();
+      rec->state_dim = static_cast<int>(state.size());
+      rec->obs.insert(rec->obs.end(), current.begin(), current.end());
+      for (double v : state) rec->state.push_back(static_cast<float>(v));
+      for (double v : action) rec->action.push_back(static_cast<float>(v));
+      rec->noise.push_back(0);
+    }
     const StepResult r = env.step(action);
     ret += r.reward;
     ++steps;
+    if (rec) rec->reward.push_back(static_cast<float>(r.reward));
     if (r.terminated) {
       outcome = "terminated";
       break;
     }
-    if (policy) policy->push(env.render());
+    if (policy || rec) current = env.render();
+    if (policy) policy->push(rec ? current : std::move(current));
+  }
+  if (rec) {
+    rec->outcome = outcome;
+    rec->episode_return = ret;
+    rec->extra["agent"] = o.agent;
+    rec->extra["label"] = o.label.empty() ? o.agent : o.label;
+    rec->extra["action_source"] = "agent";
   }
   json actions = json::array();
   for (size_t i = 0; i < chosen.size(); i += A)
@@ -256,7 +280,7 @@ EvalReport evaluate(const EvalOptions& o) {
   std::vector<json> records(o.episodes);
   std::vector<int> todo;
   for (int i = 0; i < o.episodes; ++i) {
-    auto r = load_record(ep_dir + "/" + record_name(i));
+    auto r = load_record(ep_dir + "/" + episode_record_name(i));
     if (r) records[i] = *r;
     else todo.push_back(i);
   }
@@ -266,8 +290,11 @@ EvalReport evaluate(const EvalOptions& o) {
       o.quiet, "eval " + o.agent + " on " + o.env, o.episodes, static_cast<long>(todo.size()));
   // Each episode in a fresh fork: its env, GL context and networks are made there.
   auto job = [&](int i) {
-    const json r = run_episode(o, i);
-    write_file_atomic(ep_dir + "/" + record_name(i), r.dump() + "\n");
+    MujocoEpisode recording;
+    const json r = run_episode(o, i, o.record ? &recording : nullptr);
+    // The recording first: the record commits the episode.
+    if (o.record) write_mujoco_episode(ep_dir + "/" + episode_recording_name(i), recording);
+    write_file_atomic(ep_dir + "/" + episode_record_name(i), r.dump() + "\n");
     return EpisodeNote{r.at("length").get<long>(), r.at("return").get<double>()}.encode();
   };
   auto on_done = [&](int i, const std::string& note) {
@@ -286,8 +313,8 @@ EvalReport evaluate(const EvalOptions& o) {
                     pool.first_error + "); rerun the same command to resume");
   if (!mpi_lead()) return report;  // under MPI rank 0 writes the summary, last
   for (int i : todo) {
-    auto r = load_record(ep_dir + "/" + record_name(i));
-    if (!r) throw DataError("episode record " + record_name(i) + " is missing after its run");
+    auto r = load_record(ep_dir + "/" + episode_record_name(i));
+    if (!r) throw DataError("episode record " + episode_record_name(i) + " is missing after its run");
     records[i] = *r;
   }
 

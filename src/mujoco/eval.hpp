@@ -50,6 +50,9 @@ struct EvalOptions {
   PlannerOptions planner;  // --agent expert
   std::string expert_policies;  // non-empty: --agent expert is <env>.pt there (make_expert)
   bool quiet = false;
+  // Also write episodes/episode_NNNNNN.h5 (SPEC section 8's layout): the episode as the agent
+  // drove it, for the replays of `report --html`.
+  bool record = false;
 };
 
 struct EvalReport {

@@ -6,6 +6,7 @@ cursor, its failure control goes to the recorded failure, and the screenshot is 
 import html.parser
 import json
 import os
+import re
 import shutil
 import subprocess
 import unittest
@@ -155,6 +156,73 @@ class Errors(TempDirCase):
             text = f.read()
         self.assertIn("not recorded (run eval with --record", text)
         self.assertNotIn("<section class=\"replay\"", text)
+
+
+def png_pixels(data_uri):
+    """The RGB bytes of an 8-bit RGB PNG data URI (zlib and the five PNG filters)."""
+    import base64
+    import struct
+    import zlib
+    raw = base64.b64decode(data_uri.split(",", 1)[1])
+    pos, idat, width, height = 8, b"", 0, 0
+    while pos < len(raw):
+        length, kind = struct.unpack(">I4s", raw[pos:pos + 8])
+        chunk = raw[pos + 8:pos + 8 + length]
+        if kind == b"IHDR":
+            width, height = struct.unpack(">II", chunk[:8])
+            assert chunk[8] == 8 and chunk[9] == 2, "8-bit RGB"
+        elif kind == b"IDAT":
+            idat += chunk
+        pos += 12 + length
+    data, stride, out = zlib.decompress(idat), width * 3, bytearray()
+    prev = bytearray(stride)
+    for y in range(height):
+        f, line = data[y * (stride + 1)], bytearray(data[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
+        for i in range(stride):
+            a = line[i - 3] if i >= 3 else 0
+            b, c = prev[i], prev[i - 3] if i >= 3 else 0
+            if f == 1:
+                line[i] = (line[i] + a) & 255
+            elif f == 2:
+                line[i] = (line[i] + b) & 255
+            elif f == 3:
+                line[i] = (line[i] + (a + b) // 2) & 255
+            elif f == 4:
+                p = a + b - c
+                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
+                line[i] = (line[i] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
+        out += line
+        prev = line
+    return np.frombuffer(bytes(out), np.uint8).reshape(height, width, 3)
+
+
+class MujocoReplay(TempDirCase):
+    def test_a_mujoco_replay_shows_the_recorded_frames_and_the_return_over_time(self):
+        run = os.path.join(self.dir, "reacher")
+        cli("eval", "--env", "reacher", "--agent", "random", "--episodes", 3, "--max-steps", 20,
+            "--record", "--out", run, "--quiet")
+        page = os.path.join(self.dir, "p.html")
+        cli("report", run, "--html", page)
+        with open(page, encoding="utf-8") as f:
+            text = f.read()
+        blocks = re.findall(r'<script type="application/json" class="replay-data">(.*?)</script>',
+                            text, re.S)
+        self.assertEqual(len(blocks), 1)
+        replay = json.loads(blocks[0].replace("<\\/", "</"))
+        res = read_json(os.path.join(run, "results.json"))
+        returns = [e["return"] for e in res["episodes"]]
+        worst = returns.index(min(returns))
+        self.assertIn("episode %d: lowest return" % worst, replay["title"])
+        self.assertEqual(len(replay["frames"]), 20)
+        ret = next(s for s in replay["series"] if s["name"] == "return")
+        self.assertAlmostEqual(ret["values"][-1], min(returns), delta=2e-3)
+        self.assertEqual([s["name"] for s in replay["series"]], ["return", "a0", "a1"])
+        with h5py.File(os.path.join(run, "episodes", "episode_%06d.h5" % worst), "r") as f:
+            obs = f["obs"][()]
+            np.testing.assert_allclose(np.cumsum(f["reward"][()])[-1], min(returns), atol=1e-3)
+        for t in (0, 7, 19):
+            np.testing.assert_array_equal(png_pixels(replay["frames"][t]),
+                                          obs[t].transpose(1, 2, 0))
 
 
 if __name__ == "__main__":
