@@ -9,6 +9,7 @@
 
 #include "core/config.hpp"
 #include "core/embedded.hpp"
+#include "core/text.hpp"
 #include "core/error.hpp"
 
 namespace cd {
@@ -467,19 +468,15 @@ std::map<std::string, std::string> default_config_comments() {
     const size_t hash = line.find('#');
     std::string code = line.substr(0, hash), comment;
     if (hash != std::string::npos) comment = line.substr(hash + 1);
-    auto trim = [](std::string s) {
-      const size_t a = s.find_first_not_of(" \t"), b = s.find_last_not_of(" \t");
-      return a == std::string::npos ? std::string() : s.substr(a, b - a + 1);
-    };
-    code = trim(code);
+    code = std::string(trim(code));
     if (code.size() > 2 && code.front() == '[' && code.back() == ']') {
       table = code.substr(1, code.size() - 2);
-      if (!trim(comment).empty()) out[table + "."] = trim(comment);  // the table's own
+      if (!trim(comment).empty()) out[table + "."] = std::string(trim(comment));  // the table's own
       continue;
     }
     const size_t eq = code.find('=');
     if (eq == std::string::npos || trim(comment).empty()) continue;
-    out[table + "." + trim(code.substr(0, eq))] = trim(comment);
+    out[table + "." + std::string(trim(code.substr(0, eq)))] = std::string(trim(comment));
   }
   return out;
 }

@@ -13,6 +13,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/png.hpp"
+#include "core/text.hpp"
 #include "data/h5_episode.hpp"
 #include "data/mujoco_episode.hpp"
 #include "sense/bev_colour.hpp"
@@ -38,17 +39,12 @@ std::string escape(const std::string& s) {
   return o;
 }
 
-std::string trim(const std::string& s) {
-  const size_t a = s.find_first_not_of(' '), b = s.find_last_not_of(' ');
-  return a == std::string::npos ? "" : s.substr(a, b - a + 1);
-}
-
 std::vector<std::string> cells_of(const std::string& row) {
   std::vector<std::string> cells;
-  std::string inner = trim(row);
+  std::string inner(trim(row));
   if (inner.size() >= 2) inner = inner.substr(1, inner.size() - 2);
   std::stringstream in(inner);
-  for (std::string c; std::getline(in, c, '|');) cells.push_back(trim(c));
+  for (std::string c; std::getline(in, c, '|');) cells.push_back(std::string(trim(c)));
   return cells;
 }
 

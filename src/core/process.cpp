@@ -14,6 +14,12 @@ extern char** environ;
 
 namespace cd {
 
+std::string host_name() {
+  char buf[256] = {0};
+  if (gethostname(buf, sizeof buf - 1) != 0) return "unknown";
+  return buf;
+}
+
 ProcessResult run_process(const std::vector<std::string>& argv,
                           const std::vector<std::string>& extra_env) {
   int fds[2];

@@ -14,4 +14,7 @@ struct ProcessResult {
 ProcessResult run_process(const std::vector<std::string>& argv,
                           const std::vector<std::string>& extra_env = {});
 
+// This machine's host name ("unknown" when it cannot be read): lock files, MPI messages.
+std::string host_name();
+
 }  // namespace cd

@@ -1,6 +1,7 @@
 #include "core/run_lock.hpp"
 
 #include "core/mpi.hpp"
+#include "core/process.hpp"
 
 #include <fcntl.h>
 #include <sys/file.h>
@@ -35,12 +36,6 @@ std::mutex registry_mutex;
 std::map<std::string, std::weak_ptr<RunLock::Impl>>& registry() {
   static std::map<std::string, std::weak_ptr<RunLock::Impl>> r;
   return r;
-}
-
-std::string host_name() {
-  char buf[256] = {0};
-  if (gethostname(buf, sizeof buf - 1) != 0) return "unknown";
-  return buf;
 }
 
 std::string utc_now() {

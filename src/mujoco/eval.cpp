@@ -119,8 +119,8 @@ json run_episode(const EvalOptions& o, int index, MujocoEpisode* rec) {
     rec->seed = seed;
     rec->dt = env.dt();
     rec->frame_skip = env.frame_skip();
-    rec->height = env_options.height > 0 ? env_options.height : EnvOptions{}.height;
-    rec->width = env_options.width > 0 ? env_options.width : EnvOptions{}.width;
+    rec->height = env_options.height;
+    rec->width = env_options.width;
     rec->action_dim = A;
   }
   std::vector<double> action(static_cast<size_t>(A), 0.0);
