@@ -22,9 +22,11 @@ keep_file() {
   cp "$1" "$KEEP/$rel.tmp" && mv "$KEEP/$rel.tmp" "$KEEP/$rel"
 }
 
-# restore_run DIR: copies the run kept for DIR back into DIR, unless DIR exists already.
+# restore_run DIR: copies the run kept for DIR back into DIR, unless DIR exists already. Its
+# weights come back from git history first (results/WEIGHTS.md).
 restore_run() {
   local dir=$1 kept=$KEEP/${1#"$OUT"/}
+  [[ -d $kept ]] && { "$(dirname "${BASH_SOURCE[0]}")/restore_weights.sh" "$kept" >/dev/null 2>&1 || true; }
   if [[ -d $kept && ! -d $dir ]]; then
     mkdir -p "$dir"
     cp "$kept"/* "$dir"/
@@ -75,6 +77,9 @@ kept_train() {
   mkdir -p "$kept.tmp"
   cp "${files[@]}" "$kept.tmp/"
   mv "$kept.tmp" "$kept"
+  if compgen -G "$kept/*.pt" >/dev/null; then
+    echo "$kept: kept; git ignores its weights: scripts/keep_weights.sh $kept keeps them in history" >&2
+  fi
 }
 
 # kept_eval DIR ARGS...: sets KEPT to the folder whose results.json the tables read: $KEEP's copy
