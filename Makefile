@@ -10,8 +10,13 @@ all: build
 setup:
 	@bash scripts/setup.sh
 
+# Ninja when installed (scripts/setup.sh installs it), for a new build folder; a folder keeps the
+# generator it was configured with.
+GENERATOR ?= $(if $(shell command -v ninja),-G Ninja,)
+
 configure: setup
-	@cmake -S . -B $(BUILD_DIR) -DCMAKE_BUILD_TYPE=$(BUILD_TYPE) >/dev/null
+	@cmake -S . -B $(BUILD_DIR) $(if $(wildcard $(BUILD_DIR)/CMakeCache.txt),,$(GENERATOR)) \
+		-DCMAKE_BUILD_TYPE=$(BUILD_TYPE) >/dev/null
 
 build: configure
 	@cmake --build $(BUILD_DIR) -j$(JOBS)

@@ -5,12 +5,12 @@
 set -euo pipefail
 
 packages=(
-  build-essential cmake pkg-config
+  build-essential cmake pkg-config ninja-build
   sumo sumo-tools
   libtorch-dev libopenblas0-openmp
   libeigen3-dev libboost-math-dev
   libhdf5-dev
-  libtomlplusplus-dev libcli11-dev libspdlog-dev nlohmann-json3-dev
+  libtomlplusplus-dev libcli11-dev nlohmann-json3-dev
   libstb-dev
   libmujoco-dev libosmesa6-dev
   libgtest-dev libbenchmark-dev

@@ -117,7 +117,9 @@ void visit_settings(S& st, V&& v) {
   v.integer("train", "seed", st.train.seed, 0, kMaxI64);
   v.integer("train", "threads", st.train.threads, 1, 256);
   v.flag("train", "flush_denormals", st.train.flush_denormals);
-  v.text("train", "device", st.train.device, {"cpu", "cuda", "auto"});
+  v.text("train", "device", st.train.device, {"auto", "cpu", "cuda"});
+  v.text("train", "precision", st.train.precision, {"fp32", "bf16"});
+  v.flag("train", "cuda_deterministic", st.train.cuda_deterministic);
   v.integer("train", "max_samples", st.train.max_samples, 0, kMaxI64);
   v.integer("train", "epoch_samples", st.train.epoch_samples, 0, kMaxI64);
   v.text("train", "situation_weights", st.train.situation_weights, {"none", "balanced"});
@@ -128,6 +130,7 @@ void visit_settings(S& st, V&& v) {
   v.integer("eval", "trials", st.eval.trials, 0, 1000);
   v.integer("eval", "workers", st.eval.workers, 1, 256);
   v.text("eval", "out", st.eval.out, {});
+  v.text("eval", "device", st.eval.device, {"auto", "cpu", "cuda"});
   v.number("eval", "prefill_s", st.eval.prefill_s, 0, 60);
   v.number("eval", "cs_speed", st.eval.cs_speed, 0.5, 40);
   v.integer("eval", "max_attempts", st.eval.max_attempts, 1, 100);

@@ -69,7 +69,12 @@ struct TrainSettings {
   // CPU training: treat denormal floats (below ~1.2e-38) as zero in every training thread (x86
   // FTZ/DAZ). Denormal operands make OpenBLAS's sgemm ~25x slower on this project's machines.
   bool flush_denormals = false;
-  std::string device = "cpu";    // cpu | cuda | auto
+  std::string device = "auto";   // auto | cpu | cuda (train/request.hpp: resolve_device)
+  // "bf16": the forward passes run under CUDA's bf16 autocast (the weights and the optimiser
+  // stay float32); "fp32": plain float32. CUDA only.
+  std::string precision = "fp32";
+  // CUDA: deterministic algorithms only (cuDNN's and cuBLAS's too); the CPU path always is.
+  bool cuda_deterministic = false;
   long max_samples = 0;          // 0: every sample of the data folder
   // Samples per epoch (0: one pass over the training split): fewer take a fresh seeded subset
   // each epoch, more take several shuffled passes, so that runs on folders of any size get the
@@ -89,6 +94,9 @@ struct EvalSettings {
   int trials = 0;                    // 0: the suite's own number of trials
   int workers = 2;
   std::string out = "runs/quickstart/eval";
+  // Where the agents' networks run: auto | cpu | cuda (resolved in each worker at its first
+  // step). One frame per step: on the small networks the CPU is often as fast.
+  std::string device = "auto";
   double prefill_s = 1.0;   // s the ego is held still while the agent's history fills
   double cs_speed = 8.0;    // m/s of the constant-speed baseline
   int max_attempts = 3;     // an episode whose worker or SUMO crashed is run again this often

@@ -11,6 +11,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "train/device.hpp"
+#include "core/build_parts.hpp"
 #include "agents/observation_feed.hpp"
 #include "collect/expert_episode.hpp"
 #include "core/atomic_file.hpp"
@@ -203,6 +205,9 @@ void claim_eval_folder(const std::string& out, const nlohmann::json& run,
 }
 
 EvalReport run_eval(const Settings& base, const EvalRequest& req) {
+  require_sumo("eval of a driving agent");
+  // eval.device: its one-line error here, before any worker (which resolves it again).
+  resolve_device(base.eval.device, "eval.device");
   Suite suite = load_suite(base.eval.suite);
   Settings settings = base;
   settings.world.town = suite.town;

@@ -11,6 +11,7 @@
 #include "bench/metrics.hpp"
 #include "bench/runner.hpp"
 #include "bench/suite.hpp"
+#include "bench/train_bench.hpp"
 #include "collect/expert_episode.hpp"
 #include "core/rng.hpp"
 #include "methods/method.hpp"
@@ -405,6 +406,41 @@ void add_bench(CLI::App& app) {
                  "terminal value: the last reward counted this many more times");
   ex->add_flag("--json", *json, "print one JSON object");
   ex->callback([=] { bench_expert(*ex_env, *ex_opts, *ex_steps, *ex_seed, *json); });
+
+  auto tr = std::make_shared<TrainBenchOptions>();
+  CLI::App* train = bench->add_subcommand(
+      "train", "training steps of a policy network alone, on random inputs already on the "
+               "device (samples/s; scripts/gpu_peer.py is its PyTorch-Python peer)");
+  train->add_option("--method", tr->method, "a method of the policy family (default bc-oh)");
+  train->add_option("--backbone", tr->backbone, "small | resnet34 (model.backbone)")
+      ->check(CLI::IsMember({"small", "resnet34"}));
+  train->add_option("--device", tr->device, "auto | cpu | cuda")
+      ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
+  train->add_option("--precision", tr->precision, "fp32 | bf16 (CUDA)")
+      ->check(CLI::IsMember({"fp32", "bf16"}));
+  train->add_option("--batch", tr->batch, "samples per step (default 128)")
+      ->check(CLI::PositiveNumber);
+  train->add_option("--steps", tr->steps, "timed steps (default 50)")->check(CLI::PositiveNumber);
+  train->add_option("--warmup", tr->warmup, "untimed steps first (default 5)")
+      ->check(CLI::NonNegativeNumber);
+  train->add_option("--threads", tr->threads, "torch threads (default: all cores)")
+      ->check(CLI::NonNegativeNumber);
+  train->add_option("--size", tr->height, "frame height and width in pixels (default 64)")
+      ->check(CLI::PositiveNumber);
+  train->add_flag("--json", *json, "print one JSON object");
+  train->callback([=] {
+    TrainBenchOptions o = *tr;
+    o.width = o.height;
+    const nlohmann::json r = bench_train_step(o);
+    if (*json) {
+      std::printf("%s\n", r.dump().c_str());
+      return;
+    }
+    std::printf("%s %s on %s (%s), batch %d: %.0f samples/s over %d steps (%ld parameters)\n",
+                o.method.c_str(), o.backbone.c_str(), r["device"].get<std::string>().c_str(),
+                r["precision"].get<std::string>().c_str(), o.batch,
+                r["samples_per_s"].get<double>(), o.steps, r["parameters"].get<long>());
+  });
 }
 
 }  // namespace cd::cli

@@ -16,7 +16,7 @@ namespace cd::cli {
 namespace {
 
 struct EvalArgs {
-  std::string config, agent, checkpoint, suite, out, label, sensor, cim_path;
+  std::string config, agent, checkpoint, suite, out, label, sensor, cim_path, device;
   int workers = 0, trials = 0;
   bool list = false, quiet = false, trace = false, record = false;
   // MuJoCo-Image (--env)
@@ -49,6 +49,7 @@ void eval_mujoco(const EvalArgs& a) {
   o.planner = mj::planner_options(s.mujoco);
   o.expert_policies = mj::expert_policies_for(s.mujoco.expert_policies, o.env, o.planner);
   o.quiet = a.quiet;
+  o.device = a.device.empty() ? s.eval.device : a.device;
   o.record = a.record;
   const mj::EvalReport r = mj::evaluate(o);
   if (!mpi_lead()) return;  // under MPI rank 0 reports the job
@@ -110,6 +111,9 @@ void add_eval(CLI::App& app) {
                   "with --env: end episodes after this many steps (default: the env's limit)")
       ->check(CLI::PositiveNumber)
       ->needs(env);
+  sub->add_option("--device", a->device,
+                  "where the agents' networks run: auto | cpu | cuda (eval.device)")
+      ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
   sub->add_flag("--list-suites", a->list, "list the built-in suites and agents");
   sub->add_flag("--quiet,-q", a->quiet, "no progress output");
   sub->add_flag("--record", a->record,
@@ -130,6 +134,7 @@ void add_eval(CLI::App& app) {
     if (!a->out.empty()) s.eval.out = a->out;
     if (!a->sensor.empty()) s.eval.sensor = a->sensor;
     if (!a->cim_path.empty()) s.eval.cim_path = a->cim_path;
+    if (!a->device.empty()) s.eval.device = a->device;
     EvalRequest req;
     req.agent = a->agent;
     req.checkpoint = a->checkpoint;

@@ -12,7 +12,7 @@ namespace cd::cli {
 namespace {
 
 struct TrainArgs {
-  std::string config, method, data, out, device, init, vae;
+  std::string config, method, data, out, device, precision, init, vae;
   int epochs = 0, threads = 0;
   long max_samples = -1;
   int64_t seed = -1;
@@ -44,8 +44,11 @@ void add_train(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   sub->add_option("--threads", args->threads, "torch threads (train.threads)")
       ->check(CLI::PositiveNumber);
-  sub->add_option("--device", args->device, "cpu | cuda | auto (train.device)")
-      ->check(CLI::IsMember({"cpu", "cuda", "auto"}));
+  sub->add_option("--device", args->device, "auto | cpu | cuda (train.device)")
+      ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
+  sub->add_option("--precision", args->precision,
+                  "fp32 | bf16: bf16 autocast of the forward passes, CUDA only (train.precision)")
+      ->check(CLI::IsMember({"fp32", "bf16"}));
   sub->add_option("--init", args->init,
                   "cim family: a finished run whose VAE and causes are kept and whose speed "
                   "predictor is fine-tuned on --data (few-shot adaptation)");
@@ -58,6 +61,7 @@ void add_train(CLI::App& app) {
     if (args->seed >= 0) s.train.seed = static_cast<uint64_t>(args->seed);
     if (args->threads > 0) s.train.threads = args->threads;
     if (!args->device.empty()) s.train.device = args->device;
+    if (!args->precision.empty()) s.train.precision = args->precision;
     if (!args->out.empty()) s.train.out = args->out;
     TrainRequest req;
     req.method = args->method;

@@ -36,6 +36,8 @@ void add_train_expert(CLI::App& app) {
   sub->add_option("--seed", o->seed, "seed (default 0)");
   sub->add_option("--threads", o->threads, "torch threads (default 1)")
       ->check(CLI::PositiveNumber);
+  sub->add_option("--device", o->device, "where the networks train: auto | cpu | cuda (default cpu)")
+      ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
   sub->callback([o, env, out] {
     mj::env_spec(*env);  // an unknown env: one line
     const std::string path = out->empty() ? "experts/" + *env + ".pt" : *out;

@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/build_parts.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
@@ -41,6 +42,7 @@ std::string episode_file_name(int index) {
 }
 
 CollectReport collect(const Settings& settings, const CollectOptions& options) {
+  require_sumo("collect");
   resolve_network(settings.world.town);  // a bad town is one clear error, not one per worker
   const std::string& out = settings.collect.out;
   const RunLock lock = lock_run_folder(out, "collect");  // creates the folder

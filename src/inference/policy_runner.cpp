@@ -7,6 +7,7 @@
 #include "data/mujoco_episode.hpp"
 #include "datasets/episode_set.hpp"
 #include "nn/policy_nets.hpp"
+#include "train/device.hpp"
 
 namespace cd {
 
@@ -28,6 +29,12 @@ struct PolicyRunner::Impl {
   // Preallocated inputs: one observation, filled in place every step.
   torch::Tensor image, speed, command;
   size_t frame_values = 0;
+  std::string wanted_device = "cpu";  // eval.device, resolved by place() at the first run
+  bool placed = false;
+  torch::Device device = torch::kCPU;
+
+  // Moves the networks to the wanted device, once.
+  void place();
 
   // Writes one observation into the preallocated inputs.
   void fill(const uint8_t* const* frames, double speed_value, int command_value);
@@ -39,9 +46,10 @@ struct PolicyRunner::Impl {
 };
 
 PolicyRunner::PolicyRunner(const std::string& dir, const std::string& expected_method,
-                           const std::string& weights_file)
+                           const std::string& weights_file, const std::string& device)
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
+  m.wanted_device = device;
   m.ck = require_checkpoint(dir);
   if (!expected_method.empty() && m.ck.method != expected_method)
     throw ConfigError("checkpoint " + dir + " was trained with method '" + m.ck.method +
@@ -97,9 +105,20 @@ void PolicyRunner::Impl::fill(const uint8_t* const* frames, double speed_value, 
   command.data_ptr<int64_t>()[0] = std::clamp(command_value, 0, 3);
 }
 
+void PolicyRunner::Impl::place() {
+  if (placed) return;
+  device = torch_device(resolve_device(wanted_device, "eval.device"));
+  if (device != torch::Device(torch::kCPU)) nets->to(device);
+  placed = true;
+}
+
 torch::Tensor PolicyRunner::Impl::act(const float* previous, torch::Tensor* feature_map,
                                       std::string* module) {
+  place();
   const PolicyNetsLayout& l = nets->layout;
+  // The inputs on the networks' device (the same tensors on the CPU).
+  const torch::Tensor image = this->image.to(device), speed = this->speed.to(device),
+                      command = this->command.to(device);
   torch::Tensor a;
   torch::Tensor memory_feature;
   PolicyOutput mem;
@@ -133,14 +152,14 @@ torch::Tensor PolicyRunner::Impl::act(const float* previous, torch::Tensor* feat
         pedals_to_learned(previous, ck.input.action_dim, prev.data_ptr<float>());
       else if (previous)
         std::copy_n(previous, l.action_dim, prev.data_ptr<float>());
-      a = prev + mem.action.narrow(1, 0, l.action_dim);
+      a = prev.to(device) + mem.action.narrow(1, 0, l.action_dim);
     }
   }
   return a;
 }
 
 PolicyStep PolicyRunner::Impl::step(torch::Tensor a, bool target_speed_head) {
-  a = a.detach().contiguous();
+  a = a.detach().to(torch::kCPU).contiguous();
   const float* v = a.data_ptr<float>();
   if (!target_speed_head && signed_pedals(ck.model, ck.input.domain)) {
     // throttle - brake[, steer] -> throttle, brake[, steer]
@@ -186,8 +205,8 @@ PolicyStep PolicyRunner::run_with_gradient(const uint8_t* const* frames, double 
   torch::Tensor g = torch::autograd::grad({scalar.sum()}, {map}, {}, /*retain_graph=*/false,
                                           /*create_graph=*/false, /*allow_unused=*/true)[0];
   if (!g.defined()) g = torch::zeros_like(map);
-  map = map.detach().contiguous();
-  g = g.contiguous();
+  map = map.detach().to(torch::kCPU).contiguous();
+  g = g.to(torch::kCPU).contiguous();
   out.channels = static_cast<int>(map.size(1));
   out.height = static_cast<int>(map.size(2));
   out.width = static_cast<int>(map.size(3));

@@ -1,7 +1,7 @@
 #pragma once
 // A trained policy of the behaviour-cloning family (bc-so, bc-oh, residual, fca, keyframe, hd,
-// dagger) loaded from its checkpoint folder, run on one observation at a time on the CPU
-// (closed loop, the copycat probe, attention maps). Torch stays inside the .cpp.
+// dagger) loaded from its checkpoint folder, run on one observation at a time (closed loop, the
+// copycat probe, attention maps), on the CPU or on eval.device. Torch stays inside the .cpp.
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -47,8 +47,12 @@ class PolicyRunner {
   // Reads dir/checkpoint.json and the weights file (best.pt by default), builds the network
   // from the checkpoint's own model settings, eval mode. Throws DataError for a missing or
   // damaged checkpoint, ConfigError when `expected_method` is given and differs.
+  // `device` (auto | cpu | cuda, eval.device) is resolved at the first run(), not here: a
+  // process that only checks a checkpoint before it forks its workers stays free of CUDA
+  // (train/device.hpp). Weights trained on either device load on either.
   explicit PolicyRunner(const std::string& dir, const std::string& expected_method = "",
-                        const std::string& weights_file = kBestFile);
+                        const std::string& weights_file = kBestFile,
+                        const std::string& device = "cpu");
   ~PolicyRunner();
   PolicyRunner(const PolicyRunner&) = delete;
   PolicyRunner& operator=(const PolicyRunner&) = delete;

@@ -237,7 +237,8 @@ class VaeObjective : public Objective {
 };
 
 json train_vae(const Settings& s, const EpisodeSet& eps, const GreyView& view,
-               const torch::Device& device, const std::string& out, bool quiet) {
+               const ComputeDevice& dev, const std::string& out, bool quiet) {
+  const torch::Device& device = dev.device;
   const auto start = Clock::now();
   std::vector<std::pair<int, int>> frames;
   for (int e = 0; e < static_cast<int>(eps.episodes.size()); ++e)
@@ -263,6 +264,7 @@ json train_vae(const Settings& s, const EpisodeSet& eps, const GreyView& view,
   plan.train_size = n_frames;
   plan.shuffle_seed = s.train.seed ^ kVaeOrderStream;
   plan.torch_seed = s.train.seed ^ kVaeNoiseStream;  // the reparameterisation noise
+  plan.device = &dev;
   plan.progress = progress ? &*progress : nullptr;
   plan.stop_patience = s.vae.patience;
   plan.stop_min_improvement = s.vae.min_improvement;
@@ -538,8 +540,9 @@ class PredictorObjective : public Objective {
 // Trains the predictor into out/predictor.pt; returns the stage's figures for run.json.
 json train_predictor(const Settings& s, const std::string& method, const EpisodeSet& eps,
                                 const Encoded& enc, const std::vector<int>& selected,
-                                const std::string& init_predictor, const torch::Device& device,
+                                const std::string& init_predictor, const ComputeDevice& dev,
                                 const std::string& out, bool quiet) {
+  const torch::Device& device = dev.device;
   const auto start = Clock::now();
   const int H = s.cim.history, hs = s.cim.history_stride;
   const int n_eps = static_cast<int>(eps.episodes.size());
@@ -593,7 +596,7 @@ json train_predictor(const Settings& s, const std::string& method, const Episode
   if (fewshot) {
     // Epoch 0: the initial predictor's loss on the few-shot labels (eval mode), for comparison.
     PredictorObjective on_labels(eps, enc, selected, train, train, net, device, s);
-    metrics += json({{"epoch", 0}, {"train_loss", validation_loss(on_labels, train.size(), batch)}})
+    metrics += json({{"epoch", 0}, {"train_loss", validation_loss(on_labels, train.size(), batch, &dev)}})
                    .dump() + "\n";
   }
   std::optional<Progress> progress;
@@ -604,6 +607,7 @@ json train_predictor(const Settings& s, const std::string& method, const Episode
   plan.train_size = train.size();
   plan.val_size = val.size();
   plan.shuffle_seed = s.train.seed ^ kPredOrderStream;
+  plan.device = &dev;
   plan.progress = progress ? &*progress : nullptr;
   plan.note = [epochs](int epoch, double v) { return epoch_note(epoch, epochs, "loss", v, 4); };
   double last_selection = 0;  // the kept weights' loss when they are the last (few-shot)
@@ -827,7 +831,7 @@ TrainSummary train_cim(const Settings& settings_in, const TrainRequest& req) {
     check_same_vae(*vae_run, s.vae, req.method, "--vae");
   }
 
-  const TrainingDevice dev = training_device(s.train.device, s.train.threads, s.train.flush_denormals);
+  const ComputeDevice dev = training_device(s.train);
   const torch::Device& device = dev.device;
   const std::string& device_name = dev.name;
 
@@ -850,6 +854,7 @@ TrainSummary train_cim(const Settings& settings_in, const TrainRequest& req) {
   } else {
     run.record = new_record(req.method, settings_json, data_dir, init_dir, vae_dir, device_name,
                             eps, view);
+    run.record["runtime"] = dev.record();
   }
   fs::create_directories(out);
   remove_stale_temporaries(out);
@@ -865,7 +870,7 @@ TrainSummary train_cim(const Settings& settings_in, const TrainRequest& req) {
       say(req.quiet, "  vae: copied from " + source->dir);
       run.commit("vae", {{"copied_from", source->dir}});
     } else {
-      run.commit("vae", train_vae(s, eps, view, device, out, req.quiet));
+      run.commit("vae", train_vae(s, eps, view, dev, out, req.quiet));
     }
   }
   BetaVae vae(s.vae.latents);
@@ -897,7 +902,7 @@ TrainSummary train_cim(const Settings& settings_in, const TrainRequest& req) {
   if (!predictor_done_before) {
     const std::string init_bytes =
         init_run ? read_file_bytes(init_run->dir + "/" + kCimPredictorFile) : std::string();
-    json figures = train_predictor(s, req.method, eps, encoded(), selected, init_bytes, device,
+    json figures = train_predictor(s, req.method, eps, encoded(), selected, init_bytes, dev,
                                    out, req.quiet);
     samples_per_s = figures.at("samples_per_s").get<double>();
     if (init_run) figures["init"] = init_run->dir;

@@ -163,7 +163,7 @@ class DimObjective : public Objective {
 // weights, fills its metrics and best epoch.
 std::string train_member(DimMember& m, const std::vector<SampleRef>& train, const Samples& samples,
                          const EpisodeSet& eps, const Settings& s, const std::string& method,
-                         const TrainingDevice& dev, Progress* progress, bool quiet,
+                         const ComputeDevice& dev, Progress* progress, bool quiet,
                          LoopTotals& totals) {
   const DimSettings& d = s.dim;
   const int epochs = s.train.epochs;
@@ -188,6 +188,7 @@ std::string train_member(DimMember& m, const std::vector<SampleRef>& train, cons
   // The NLL of a badly placed sample can be huge while sigma is small: bound the step.
   plan.clip_grad_norm = 10.0;
   plan.stop_patience = d.patience;  // any better validation NLL restarts the count
+  plan.device = &dev;
   plan.progress = progress;
   const std::string member = "member " + std::to_string(m.index + 1) + "/" +
                              std::to_string(d.ensemble) + " ";
@@ -238,7 +239,7 @@ TrainSummary train_dim(const Settings& settings_in, const TrainRequest& req) {
     refuse_other_run({previous->method, previous->settings, previous->data_dir},
                      {req.method, settings_json, data_dir}, out, {"dim", "train"}, may_differ);
 
-  const TrainingDevice dev = training_device(s.train.device, s.train.threads, s.train.flush_denormals);
+  const ComputeDevice dev = training_device(s.train);
 
   const EpisodeSet eps = load_episode_set(req.data_dir);
   for (const auto& e : eps.episodes)
@@ -274,6 +275,7 @@ TrainSummary train_dim(const Settings& settings_in, const TrainRequest& req) {
     }
   }
   run.device = dev.name;
+  run.runtime = dev.record();
 
   TrainSummary sum = train_summary(req, dev.name, run.train_samples, run.val_samples,
                                    run.train_episodes, run.val_episodes);

@@ -35,7 +35,7 @@ constexpr uint64_t kShuffleStream = 0x7a11;
 // further), where the output goes, and the compute resources.
 bool may_differ(const std::string& table, const std::string& key) {
   return table == "train" && (key == "epochs" || key == "out" || key == "threads" ||
-                              key == "device");
+                              key == "device" || key == "cuda_deterministic");
 }
 
 // The networks and optimiser of the last committed epoch in `out`.
@@ -62,33 +62,38 @@ torch::Tensor PolicyBatch::current(int frame_channels) const {
 
 PolicyBatcher::PolicyBatcher(const Dataset& data, int B, const torch::Device& device,
                              const std::vector<float>& train_weights)
-    : data_(data), device_(device) {
+    : data_(data), device_(device), cuda_(device.is_cuda()) {
   if (!train_weights.empty())
     train_weights_ = torch::tensor(train_weights, torch::kFloat32).to(device);
-  auto f = torch::TensorOptions().dtype(torch::kFloat32);
-  auto i64 = torch::TensorOptions().dtype(torch::kInt64);
+  auto f = torch::TensorOptions().dtype(torch::kFloat32).pinned_memory(cuda_);
+  auto i64 = torch::TensorOptions().dtype(torch::kInt64).pinned_memory(cuda_);
   const EpisodeSet& eps = data.episodes();
   const int A = data.action_dim(), L = data.options().action_lags;
-  image_ = torch::empty({B, data.input_channels(), eps.height, eps.width}, f);
-  speed_in_ = torch::empty({B, 1}, f);
-  command_ = torch::empty({B}, i64);
-  action_ = torch::empty({B, A}, f);
-  speed_label_ = torch::empty({B, 1}, f);
-  if (L > 0) previous_ = torch::empty({B, L, A}, f);
-  rows_ = torch::empty({B}, i64);
+  for (int k = 0; k < (cuda_ ? 2 : 1); ++k) {
+    Staging& s = staging_[k];
+    s.image = torch::empty({B, data.input_channels(), eps.height, eps.width}, f);
+    s.speed_in = torch::empty({B, 1}, f);
+    s.command = torch::empty({B}, i64);
+    s.action = torch::empty({B, A}, f);
+    s.speed_label = torch::empty({B, 1}, f);
+    if (L > 0) s.previous = torch::empty({B, L, A}, f);
+    s.rows = torch::empty({B}, i64);
+  }
 }
 
 PolicyBatch PolicyBatcher::batch(bool training, const uint32_t* rows, int64_t n) {
   const std::vector<SampleRef>& samples = training ? data_.train() : data_.val();
   const size_t iv = data_.image_values();
   const int A = data_.action_dim(), L = data_.options().action_lags;
-  float* img = image_.data_ptr<float>();
-  float* sp = speed_in_.data_ptr<float>();
-  int64_t* cmd = command_.data_ptr<int64_t>();
-  float* act = action_.data_ptr<float>();
-  float* lab = speed_label_.data_ptr<float>();
-  float* prev = L > 0 ? previous_.data_ptr<float>() : nullptr;
-  int64_t* r = rows_.data_ptr<int64_t>();
+  const Staging& st = staging_[next_];
+  if (cuda_) next_ ^= 1;
+  float* img = st.image.data_ptr<float>();
+  float* sp = st.speed_in.data_ptr<float>();
+  int64_t* cmd = st.command.data_ptr<int64_t>();
+  float* act = st.action.data_ptr<float>();
+  float* lab = st.speed_label.data_ptr<float>();
+  float* prev = L > 0 ? st.previous.data_ptr<float>() : nullptr;
+  int64_t* r = st.rows.data_ptr<int64_t>();
   at::parallel_for(0, n, 8, [&](int64_t lo, int64_t hi) {
     for (int64_t i = lo; i < hi; ++i) {
       data_.fill(samples[rows[i]], {img + i * iv, sp + i, cmd + i, act + i * A, lab + i,
@@ -96,16 +101,18 @@ PolicyBatch PolicyBatcher::batch(bool training, const uint32_t* rows, int64_t n)
       r[i] = rows[i];
     }
   });
-  auto on = [&](const torch::Tensor& t) { return t.narrow(0, 0, n).to(device_); };
+  auto on = [&](const torch::Tensor& t) {
+    return t.narrow(0, 0, n).to(device_, /*non_blocking=*/cuda_);
+  };
   PolicyBatch b;
   b.n = n;
-  b.image = on(image_);
-  b.speed_in = on(speed_in_);
-  b.command = on(command_);
-  b.action = on(action_);
-  b.speed_label = on(speed_label_);
-  if (L > 0) b.previous = on(previous_);
-  b.rows = on(rows_);
+  b.image = on(st.image);
+  b.speed_in = on(st.speed_in);
+  b.command = on(st.command);
+  b.action = on(st.action);
+  b.speed_label = on(st.speed_label);
+  if (L > 0) b.previous = on(st.previous);
+  b.rows = on(st.rows);
   if (training && train_weights_.defined()) b.weight = train_weights_.index_select(0, b.rows);
   return b;
 }
@@ -179,7 +186,7 @@ TrainSummary train_policy_family(const Settings& settings_in, const TrainRequest
     refuse_other_run({previous->method, previous->settings, previous->data_dir},
                      {req.method, settings_json, data_dir}, out, tables, may_differ);
 
-  const TrainingDevice dev = training_device(s.train.device, s.train.threads, s.train.flush_denormals);
+  const ComputeDevice dev = training_device(s.train);
 
   DatasetOptions dopt;
   dopt.history = s.model.history;
@@ -220,6 +227,7 @@ TrainSummary train_policy_family(const Settings& settings_in, const TrainRequest
   ck.residual = s.residual;
   ck.fca = s.fca;
   ck.device = dev.name;
+  ck.runtime = dev.record();
   ck.input = {eps.channels,       eps.height, eps.width, s.model.history, s.model.history_stride,
               eps.action_dim,     eps.dt,     eps.metres_per_pixel, eps.channel_names,
               eps.domain,         eps.env,    ""};
@@ -271,6 +279,7 @@ TrainSummary train_policy_family(const Settings& settings_in, const TrainRequest
   plan.lr_patience = s.train.lr_patience;
   plan.lr_decay = s.train.lr_decay;
   plan.lr_min = s.train.lr_min;
+  plan.device = &dev;
   plan.progress = progress ? &*progress : nullptr;
   plan.note = [epochs](int epoch, double loss) { return epoch_note(epoch, epochs, "loss", loss, 4); };
   LoopState state{ck.best_epoch > 0, ck.best_epoch, ck.best_loss, ck.bad_epochs, ck.lr};
@@ -314,7 +323,9 @@ namespace {
 class FamilyAgent : public Agent {
  public:
   FamilyAgent(const std::string& method, const std::string& dir, const Settings& s)
-      : method_(method), runner_(dir, method), pid_(s.control, EgoModel(s.ego), s.world.dt) {
+      : method_(method),
+        runner_(dir, method, kBestFile, s.eval.device),
+        pid_(s.control, EgoModel(s.ego), s.world.dt) {
     const InputFormat& in = runner_.checkpoint().input;
     if (in.domain != "driving")
       throw ConfigError("checkpoint " + dir + " was trained on MuJoCo-Image data ('" + in.env +

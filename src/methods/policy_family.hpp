@@ -42,7 +42,9 @@ struct PolicyBatch {
 };
 
 // Fills batches of a Dataset's splits (frames unpacked over torch's threads; each sample
-// writes its own rows, so the result does not depend on the thread count).
+// writes its own rows, so the result does not depend on the thread count). On CUDA the host
+// buffers are pinned and copied without blocking, in two sets used in turn: batch n+1 is filled
+// while the GPU still copies and runs batch n (the loop reads a batch's loss one batch late).
 class PolicyBatcher {
  public:
   // train_weights: one weight per training sample (train.situation_weights), or empty.
@@ -52,9 +54,14 @@ class PolicyBatcher {
   const Dataset& data() const { return data_; }
 
  private:
+  struct Staging {
+    torch::Tensor image, speed_in, command, action, speed_label, previous, rows;
+  };
   const Dataset& data_;
   torch::Device device_;
-  torch::Tensor image_, speed_in_, command_, action_, speed_label_, previous_, rows_;
+  bool cuda_ = false;
+  Staging staging_[2];  // host buffers; the CPU uses the first alone
+  int next_ = 0;
   torch::Tensor train_weights_;  // N_train on the device, or undefined
 };
 

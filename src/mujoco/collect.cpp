@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/build_parts.hpp"
 #include "collect/collect.hpp"
 #include "collect/expert_episode.hpp"
 #include "core/atomic_file.hpp"
@@ -127,6 +128,7 @@ MujocoEpisode record_episode(const CollectOptions& o, int index) {
 }
 
 CollectReport collect(const CollectOptions& o) {
+  require_mujoco("collect --env");
   validate(o);
   { Env probe(o.env); }  // a missing model file: one line, before any worker starts
   const RunLock lock = lock_run_folder(o.out, "collect");  // creates the folder

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <utility>
 
+#include <mujoco/mujoco.h>
+
 #include "core/error.hpp"
 #include "mujoco/renderer.hpp"
 
@@ -27,6 +29,11 @@ Env::~Env() {
   renderer_.reset();
   if (data_ != nullptr) mj_deleteData(data_);
 }
+
+double Env::dt() const { return model_->opt.timestep * spec_.frame_skip; }
+int Env::action_dim() const { return model_->nu; }
+int Env::state_dim() const { return model_->nq + model_->nv; }
+int Env::qpos_dim() const { return model_->nq; }
 
 std::vector<double> Env::action_low() const {
   std::vector<double> low(model_->nu);

@@ -45,15 +45,15 @@ class Env {
 
   const EnvSpec& spec() const { return spec_; }
   const std::string& name() const { return spec_.name; }
-  double dt() const { return model_->opt.timestep * spec_.frame_skip; }  // seconds per step
+  double dt() const;  // seconds per step
   int frame_skip() const { return spec_.frame_skip; }
   int max_steps() const { return spec_.max_steps; }
 
-  int action_dim() const { return model_->nu; }
+  int action_dim() const;
   std::vector<double> action_low() const;   // actuator ctrlrange
   std::vector<double> action_high() const;
-  int state_dim() const { return model_->nq + model_->nv; }
-  int qpos_dim() const { return model_->nq; }
+  int state_dim() const;
+  int qpos_dim() const;
 
   // The initial state qpos0 (zero velocity) plus the spec's noise drawn from Rng(seed); returns
   // the first frame. Same seed, same state, same frame bytes.

@@ -1,5 +1,7 @@
 #include "mujoco/env_spec.hpp"
 
+#include <mujoco/mujoco.h>
+
 #include <algorithm>
 #include <cmath>
 

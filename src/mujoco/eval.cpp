@@ -9,6 +9,8 @@
 #include <memory>
 #include <optional>
 
+#include "train/device.hpp"
+#include "core/build_parts.hpp"
 #include "bench/runner.hpp"
 #include "collect/expert_episode.hpp"
 #include "bench/episode_files.hpp"
@@ -95,7 +97,7 @@ json run_episode(const EvalOptions& o, int index, MujocoEpisode* rec) {
   std::unique_ptr<FramePolicy> policy;
   EnvOptions env_options;
   if (is_policy(o.agent)) {
-    policy = std::make_unique<FramePolicy>(o.checkpoint, o.agent);
+    policy = std::make_unique<FramePolicy>(o.checkpoint, o.agent, o.device);
     env_options.width = policy->width();
     env_options.height = policy->height();
   }
@@ -260,6 +262,8 @@ double lag1_r2(const std::vector<std::vector<float>>& episodes, int A) {
 }
 
 EvalReport evaluate(const EvalOptions& o) {
+  require_mujoco("eval of a MuJoCo-Image run");
+  resolve_device(o.device, "eval.device");  // its one-line error before any worker
   Checkpoint ck;
   validate(o, &ck);
   const std::string ep_dir = o.out + "/episodes";

@@ -50,6 +50,7 @@ struct EvalOptions {
   PlannerOptions planner;  // --agent expert
   std::string expert_policies;  // non-empty: --agent expert is <env>.pt there (make_expert)
   bool quiet = false;
+  std::string device = "cpu";  // where a family policy's networks run (eval.device)
   // Also write episodes/episode_NNNNNN.h5 (SPEC section 8's layout): the episode as the agent
   // drove it, for the replays of `report --html`.
   bool record = false;

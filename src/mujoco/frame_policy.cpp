@@ -6,9 +6,10 @@
 
 namespace cd::mj {
 
-FramePolicy::FramePolicy(const std::string& run_dir, const std::string& method) {
+FramePolicy::FramePolicy(const std::string& run_dir, const std::string& method,
+                         const std::string& device) {
   set_torch_threads(1);
-  runner_ = std::make_unique<PolicyRunner>(run_dir, method);
+  runner_ = std::make_unique<PolicyRunner>(run_dir, method, kBestFile, device);
   history_.resize(static_cast<size_t>(runner_->history()));
 }
 

@@ -19,7 +19,9 @@ class FramePolicy {
  public:
   // Loads the run folder's best weights with torch on one thread (one worker per core). Throws
   // DataError for a missing or damaged checkpoint, ConfigError for another method.
-  FramePolicy(const std::string& run_dir, const std::string& method);
+  // `device`: eval.device (auto | cpu | cuda), resolved at the first action.
+  FramePolicy(const std::string& run_dir, const std::string& method,
+              const std::string& device = "cpu");
   ~FramePolicy();
   FramePolicy(const FramePolicy&) = delete;
   FramePolicy& operator=(const FramePolicy&) = delete;

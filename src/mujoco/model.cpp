@@ -1,5 +1,7 @@
 #include "mujoco/model.hpp"
 
+#include <mujoco/mujoco.h>
+
 #include <cstdlib>
 #include <filesystem>
 #include <map>

@@ -4,7 +4,12 @@
 #include <memory>
 #include <string>
 
-#include <mujoco/mujoco.h>
+// MuJoCo's model and data, declared as mujoco.h does: only the files that call MuJoCo include it
+// (a build without MuJoCo compiles everything else).
+struct mjModel_;
+typedef struct mjModel_ mjModel;
+struct mjData_;
+typedef struct mjData_ mjData;
 
 namespace cd::mj {
 

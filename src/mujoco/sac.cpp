@@ -14,6 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "train/device.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/progress.hpp"
@@ -108,7 +109,11 @@ void validate(const SacOptions& o) {
 void save_actor(Actor& actor, int obs, int act, int hidden, const std::string& env,
                 const std::string& path) {
   torch::serialize::OutputArchive archive;
+  // Host tensors: the file loads on a machine without a GPU.
+  const torch::Device where = actor->parameters().front().device();
+  actor->to(torch::kCPU);
   actor->save(archive);
+  actor->to(where);
   archive.write("sizes", torch::tensor({int64_t(obs), int64_t(act), int64_t(hidden)}));
   archive.write("env_" + env, torch::zeros({1}));
   // Through memory: a file archive would carry its (temporary) file name inside.
@@ -210,13 +215,22 @@ SacReport train_sac(const std::string& env_name, const SacOptions& o, const std:
   if (!std::filesystem::path(out).parent_path().empty())
     std::filesystem::create_directories(std::filesystem::path(out).parent_path());
 
+  const ComputeDevice dev = compute_device(o.device, "fp32", false, o.threads, "--device");
+  const torch::Device D = dev.device;
   torch::set_num_threads(o.threads);
   torch::manual_seed(o.seed);
   Actor actor(O, A, o.hidden);
   Critic critic(O, A, o.hidden), target(O, A, o.hidden);
   copy_params(*target, *critic, 1.0);
   for (auto& p : target->parameters()) p.set_requires_grad(false);
-  torch::Tensor log_alpha = torch::zeros({1}, torch::requires_grad());
+  actor->to(D);
+  critic->to(D);
+  target->to(D);
+  torch::Tensor log_alpha = torch::zeros({1}, torch::TensorOptions().device(D).requires_grad(true));
+  // An observation (host floats) on the networks' device, and an action back on the host.
+  auto on_device = [&](std::vector<float>& x) {
+    return torch::from_blob(x.data(), {1, O}).clone().to(D);
+  };
   torch::optim::Adam actor_opt(actor->parameters(), o.lr), critic_opt(critic->parameters(), o.lr),
       alpha_opt({log_alpha}, o.lr);
   const double target_entropy = -static_cast<double>(A);
@@ -246,7 +260,7 @@ SacReport train_sac(const std::string& env_name, const SacOptions& o, const std:
       double ret = 0;
       for (int t = 0; t < eval_env.max_steps(); ++t) {
         std::vector<float> x = policy_input(spec, nq, eval_env.state());
-        torch::Tensor a = actor->deterministic(torch::from_blob(x.data(), {1, O}).clone())[0];
+        torch::Tensor a = actor->deterministic(on_device(x)).to(torch::kCPU)[0];
         const StepResult r = eval_env.step(to_env({a.data_ptr<float>(), size_t(A)}, low, high));
         ret += r.reward;
         if (r.terminated || r.truncated) break;
@@ -278,7 +292,8 @@ SacReport train_sac(const std::string& env_name, const SacOptions& o, const std:
         {"env", env_name}, {"algorithm", "sac"}, {"options", options_json(o)},
         {"best", {{"steps", report.best.steps}, {"mean_return", report.best.mean_return},
                   {"sd_return", report.best.sd_return}}},
-        {"episodes", episodes}, {"seconds", elapsed()}, {"evaluations", evaluations_json()}};
+        {"episodes", episodes}, {"seconds", elapsed()}, {"evaluations", evaluations_json()},
+        {"runtime", dev.record()}};
     write_file_atomic(record_path, j.dump(2) + "\n");
   };
 
@@ -294,7 +309,7 @@ SacReport train_sac(const std::string& env_name, const SacOptions& o, const std:
     archive.write("meta", bytes_tensor(meta.dump()));
     for (auto& [name, m] : modules) archive.write(name, bytes_tensor(save_module_bytes(*m)));
     for (auto& [name, opt] : optimizers) archive.write(name, bytes_tensor(save_optimizer_bytes(*opt)));
-    archive.write("log_alpha", log_alpha.detach().clone());
+    archive.write("log_alpha", log_alpha.detach().to(torch::kCPU).clone());
     for (auto& [name, b] : buffers) archive.write(name, b->narrow(0, 0, steps_done).clone());
     {
       // The engine's state, and both cached normal draws set explicitly on loading, so that
@@ -338,11 +353,11 @@ SacReport train_sac(const std::string& env_name, const SacOptions& o, const std:
                           std::to_string(o.steps));
       for (auto& [name, m] : modules) {
         t = read(name);
-        load_module_bytes(*m, tensor_bytes(t), torch::kCPU, resume_path + " (" + name + ")");
+        load_module_bytes(*m, tensor_bytes(t), D, resume_path + " (" + name + ")");
       }
       for (auto& [name, opt] : optimizers) {
         t = read(name);
-        load_optimizer_bytes(*opt, tensor_bytes(t), torch::kCPU, resume_path + " (" + name + ")", hint);
+        load_optimizer_bytes(*opt, tensor_bytes(t), D, resume_path + " (" + name + ")", hint);
       }
       t = read("log_alpha");
       {
@@ -404,7 +419,7 @@ SacReport train_sac(const std::string& env_name, const SacOptions& o, const std:
       for (float& a : act) a = static_cast<float>(rng.uniform(-1.0, 1.0));
     } else {
       torch::NoGradGuard no_grad;
-      torch::Tensor a = actor->sample(torch::from_blob(obs.data(), {1, O}).clone()).first[0];
+      torch::Tensor a = actor->sample(on_device(obs)).first.to(torch::kCPU)[0];
       std::copy_n(a.data_ptr<float>(), A, act.begin());
     }
     const StepResult r = env.step(to_env(act, low, high));
@@ -423,9 +438,11 @@ SacReport train_sac(const std::string& env_name, const SacOptions& o, const std:
 
     if (t + 1 >= o.start_steps && t + 1 >= o.batch) {
       const torch::Tensor idx = torch::randint(0, t + 1, {o.batch}, torch::kLong);
-      const torch::Tensor so = b_obs.index_select(0, idx), sa = b_act.index_select(0, idx),
-                          sr = b_rew.index_select(0, idx), sn = b_next.index_select(0, idx),
-                          sd = b_done.index_select(0, idx);
+      const torch::Tensor so = b_obs.index_select(0, idx).to(D),
+                          sa = b_act.index_select(0, idx).to(D),
+                          sr = b_rew.index_select(0, idx).to(D),
+                          sn = b_next.index_select(0, idx).to(D),
+                          sd = b_done.index_select(0, idx).to(D);
       const torch::Tensor alpha = log_alpha.exp().detach();
       torch::Tensor y;
       {
@@ -500,7 +517,7 @@ PolicyExpert::PolicyExpert(const std::string& path, const std::string& env)
     throw DataError("no expert policy for '" + env + "' at " + path);
   try {
     torch::serialize::InputArchive archive;
-    archive.load_from(path);
+    archive.load_from(path, torch::kCPU);
     torch::Tensor sizes, tag;
     archive.read("sizes", sizes);
     if (!archive.try_read("env_" + env, tag))

@@ -37,6 +37,9 @@ struct SacOptions {
   int eval_episodes = 5;      // seeded episodes per evaluation (their own seeds)
   uint64_t seed = 0;
   int threads = 1;            // torch threads; small networks run fastest on one
+  // auto | cpu | cuda: where the networks and their updates run (the replay buffer stays in
+  // host memory). One small update per env step: the CPU is the default.
+  std::string device = "cpu";
 };
 
 struct SacEvaluation {

@@ -49,6 +49,7 @@ json checkpoint_to_json(const Checkpoint& c) {
   }
   if (!c.input.action_output.empty()) j["input"]["action_output"] = c.input.action_output;
   if (!c.method_record.is_null()) j["method_record"] = c.method_record;
+  if (!c.runtime.is_null()) j["runtime"] = c.runtime;
   return j;
 }
 
@@ -101,6 +102,7 @@ Checkpoint checkpoint_from_json(const json& j, const std::string& where) {
   c.train_episodes = episodes.get<int>("train");
   c.val_episodes = episodes.get<int>("val");
   c.device = f.get<std::string>("device");
+  if (j.contains("runtime")) c.runtime = j.at("runtime");
   c.epochs_done = f.get<int>("epochs_done");
   c.best_epoch = f.get<int>("best_epoch");
   c.best_loss = f.get<double>("best_loss");

@@ -59,6 +59,9 @@ struct Checkpoint {
   long train_samples = 0, val_samples = 0;
   int train_episodes = 0, val_episodes = 0;
   std::string device;       // cpu | cuda, where it trained
+  // How it trained (train/device.hpp ComputeDevice::record: device, precision, deterministic,
+  // threads, libtorch, CUDA) of the last session; null in runs made before it was recorded.
+  nlohmann::json runtime;
   int epochs_done = 0;
   int best_epoch = 0;       // 0: none yet
   double best_loss = 0;     // validation loss of best_epoch (training loss without validation)

@@ -61,6 +61,7 @@ json dim_run_to_json(const DimRun& r) {
           {"samples", {{"train", r.train_samples}, {"val", r.val_samples}}},
           {"episodes", {{"train", r.train_episodes}, {"val", r.val_episodes}}},
           {"device", r.device},
+          {"runtime", r.runtime},
           {"members_done", r.finished_members()},
           {"members", members}};
 }
@@ -92,6 +93,7 @@ DimRun dim_run_from_json(const json& j, const std::string& where) {
   r.train_episodes = episodes.get<int>("train");
   r.val_episodes = episodes.get<int>("val");
   r.device = f.get<std::string>("device");
+  if (j.contains("runtime")) r.runtime = j.at("runtime");
   const json& members = f.at("members");
   if (!members.is_array()) throw DataError(where + ": key 'members' is not an array");
   for (const json& mj : members) {

@@ -1,7 +1,5 @@
 #include "train/loop.hpp"
 
-#include "train/request.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -10,6 +8,7 @@
 #include "core/fault.hpp"
 #include "core/progress.hpp"
 #include "core/rng.hpp"
+#include "app/settings.hpp"
 
 namespace cd {
 
@@ -69,11 +68,12 @@ std::string epoch_note(int epoch, int epochs, const char* what, double value, in
   return note;
 }
 
-TrainingDevice training_device(const std::string& wanted, int threads, bool flush_denormals) {
-  const std::string name = resolve_device(wanted);
-  torch::set_num_threads(threads);
-  set_flush_denormals(flush_denormals);
-  return {name, torch::Device(name == "cuda" ? torch::kCUDA : torch::kCPU)};
+ComputeDevice training_device(const TrainSettings& train) {
+  ComputeDevice d =
+      compute_device(train.device, train.precision, train.cuda_deterministic, train.threads);
+  torch::set_num_threads(train.threads);
+  set_flush_denormals(train.flush_denormals);
+  return d;
 }
 
 void set_learning_rate(torch::optim::Optimizer& opt, double lr) {
@@ -98,8 +98,11 @@ std::vector<uint32_t> epoch_order(const LoopPlan& plan, int epoch) {
   return order;
 }
 
-double validation_loss(Objective& objective, size_t val_size, int batch_size) {
+double validation_loss(Objective& objective, size_t val_size, int batch_size,
+                       const ComputeDevice* device) {
   torch::NoGradGuard no_grad;
+  const ComputeDevice cpu;
+  AutocastScope autocast(device ? *device : cpu);
   objective.set_training(false);
   std::vector<uint32_t> rows(std::min<size_t>(val_size, static_cast<size_t>(batch_size)));
   double sum = 0;
@@ -115,6 +118,9 @@ LoopTotals train_epochs(Objective& objective, torch::optim::Optimizer& opt, cons
                         LoopState& state,
                         const std::function<void(const EpochResult&)>& after_epoch) {
   LoopTotals totals;
+  const ComputeDevice cpu;
+  const ComputeDevice& dev = plan.device ? *plan.device : cpu;
+  const bool overlap = dev.name == "cuda";
   set_learning_rate(opt, state.lr);
   const size_t B = static_cast<size_t>(plan.batch_size);
   for (int epoch = plan.first_epoch; epoch <= plan.last_epoch; ++epoch) {
@@ -129,16 +135,33 @@ LoopTotals train_epochs(Objective& objective, torch::optim::Optimizer& opt, cons
 
     objective.set_training(true);
     double loss_sum = 0;
-    for (size_t begin = 0; begin < n_train; begin += B) {
-      const int64_t n = std::min<int64_t>(plan.batch_size, static_cast<int64_t>(n_train - begin));
-      BatchLoss b = objective.update(order.data() + begin, n, opt, plan.clip_grad_norm);
+    // A batch's loss read (a sync on CUDA) and counted; on CUDA one batch late (LoopPlan).
+    std::optional<BatchLoss> pending;
+    int64_t pending_n = 0;
+    auto settle = [&](const BatchLoss& b, int64_t n) {
       const double v = b.loss.item<double>();
       loss_sum += v * static_cast<double>(n);
       r.train_parts.resize(b.parts.size(), 0.0);
       for (size_t k = 0; k < b.parts.size(); ++k)
         r.train_parts[k] += b.parts[k].item<double>() * static_cast<double>(n);
       if (plan.progress) plan.progress->advance(n, plan.note ? plan.note(epoch, v) : "");
+    };
+    for (size_t begin = 0; begin < n_train; begin += B) {
+      const int64_t n = std::min<int64_t>(plan.batch_size, static_cast<int64_t>(n_train - begin));
+      BatchLoss b;
+      {
+        AutocastScope autocast(dev);
+        b = objective.update(order.data() + begin, n, opt, plan.clip_grad_norm);
+      }
+      if (!overlap) {
+        settle(b, n);
+        continue;
+      }
+      if (pending) settle(*pending, pending_n);
+      pending = std::move(b);
+      pending_n = n;
     }
+    if (pending) settle(*pending, pending_n);
     r.train_seconds = seconds_since(r.started);
     r.train_loss = loss_sum / static_cast<double>(n_train);
     for (double& p : r.train_parts) p /= static_cast<double>(n_train);
@@ -146,7 +169,8 @@ LoopTotals train_epochs(Objective& objective, torch::optim::Optimizer& opt, cons
     totals.samples += static_cast<long>(n_train);
     totals.seconds += r.train_seconds;
 
-    if (plan.val_size > 0) r.val_loss = validation_loss(objective, plan.val_size, plan.batch_size);
+    if (plan.val_size > 0)
+      r.val_loss = validation_loss(objective, plan.val_size, plan.batch_size, &dev);
 
     // Model selection and the plateau rule follow the validation loss when there is one.
     const double selection = r.selection();

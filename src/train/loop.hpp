@@ -17,10 +17,12 @@
 #include <torch/torch.h>
 
 #include "runs/record.hpp"
+#include "train/device.hpp"
 
 namespace cd {
 
 class Progress;
+struct TrainSettings;
 
 // A batch's loss (what is minimised) and the parts a method reports beside it (vae: recon, kl).
 struct BatchLoss {
@@ -60,6 +62,10 @@ struct LoopPlan {
   // loss of the last epoch that was). <= 0: every epoch up to last_epoch is trained.
   int stop_patience = 0;
   double stop_min_improvement = 0;
+  // Where the objective's tensors live: its precision (bf16 autocast) applies to every batch,
+  // and on CUDA a batch's loss is read after the next batch is queued, so that filling a batch
+  // on the CPU overlaps the GPU's step (nullptr: the CPU, float32).
+  const ComputeDevice* device = nullptr;
   Progress* progress = nullptr;                            // advanced batch by batch
   std::function<std::string(int epoch, double loss)> note;  // its note after a batch
 };
@@ -108,7 +114,8 @@ size_t epoch_size(const LoopPlan& plan);  // epoch_samples, or train_size when 0
 size_t epoch_size(size_t train_size, size_t epoch_samples);  // the same rule, before a plan
 
 // The mean loss of the validation split (eval mode, no gradient), in batches in order.
-double validation_loss(Objective& objective, size_t val_size, int batch_size);
+double validation_loss(Objective& objective, size_t val_size, int batch_size,
+                       const ComputeDevice* device = nullptr);
 
 // Trains epochs plan.first_epoch..plan.last_epoch (fewer when the early-stop rule ends it); after each, `after_epoch` sees its result
 // (the method writes what it keeps). The optimiser's learning rate is set to state.lr first.
@@ -122,14 +129,10 @@ void set_learning_rate(torch::optim::Optimizer& opt, double lr);
 // "epoch 3/8 loss 0.1234": the progress note of a batch (`digits` after the point).
 std::string epoch_note(int epoch, int epochs, const char* what, double value, int digits);
 
-// Where a run trains: train.device resolved (train/request.hpp), torch's threads set to
-// train.threads, and denormal floats flushed to zero or kept (train.flush_denormals) on this
-// thread and on every one of torch's intra-op threads (threads they start later inherit it; a
-// ConfigError where the CPU cannot flush them).
-struct TrainingDevice {
-  std::string name;  // cpu | cuda
-  torch::Device device;
-};
-TrainingDevice training_device(const std::string& wanted, int threads, bool flush_denormals);
+// Where a run trains: train.device, train.precision and train.cuda_deterministic resolved
+// (train/device.hpp), torch's threads set to train.threads, and denormal floats flushed to zero
+// or kept (train.flush_denormals) on this thread and on every one of torch's intra-op threads
+// (threads they start later inherit it; a ConfigError where the CPU cannot flush them).
+ComputeDevice training_device(const TrainSettings& train);
 
 }  // namespace cd

@@ -1,7 +1,5 @@
 #include "train/request.hpp"
 
-#include <torch/cuda.h>
-
 #include "core/error.hpp"
 
 namespace cd {
@@ -19,19 +17,6 @@ TrainSummary train_summary(const TrainRequest& request, const std::string& devic
   s.val_episodes = val_episodes;
   s.has_validation = val_samples > 0;
   return s;
-}
-
-std::string resolve_device(const std::string& wanted) {
-  if (wanted == "cpu") return "cpu";
-  bool cuda = torch::cuda::is_available();
-  if (wanted == "auto") return cuda ? "cuda" : "cpu";
-  if (wanted == "cuda") {
-    if (!cuda)
-      throw ConfigError("train.device = \"cuda\" but no CUDA device is usable (this libtorch "
-                        "build or machine has none); use \"cpu\" or \"auto\"");
-    return "cuda";
-  }
-  throw ConfigError("train.device must be cpu, cuda or auto (got '" + wanted + "')");
 }
 
 }  // namespace cd

@@ -37,7 +37,4 @@ TrainSummary train_summary(const TrainRequest& request, const std::string& devic
                            long train_samples, long val_samples, int train_episodes,
                            int val_episodes);
 
-// The device train.device names: "cpu", or "cuda" (ConfigError when none is usable).
-std::string resolve_device(const std::string& wanted);
-
 }  // namespace cd

@@ -71,17 +71,6 @@ Vec2 point_at(const LaneGeom& lane, double pos) {
 
 }  // namespace
 
-const char* outcome_name(Outcome o) {
-  switch (o) {
-    case Outcome::Running: return "running";
-    case Outcome::Success: return "success";
-    case Outcome::Collision: return "collision";
-    case Outcome::Timeout: return "timeout";
-    case Outcome::Offroad: return "offroad";
-  }
-  return "?";
-}
-
 namespace {
 
 std::vector<std::string> sumo_command(const std::string& net_path, double dt, uint64_t seed) {
@@ -313,11 +302,6 @@ Task World::sample_task(uint64_t seed, double min_len, double max_len) {
   if (best.route.empty()) throw SimError(net_->path + ": no route found between car edges");
   best.timeout_s = best.route_length / (5.0 / 3.6) + 20.0;
   return best;
-}
-
-const std::vector<std::string>& scenario_names() {
-  static const std::vector<std::string> names = {"route", "red_light", "leader"};
-  return names;
 }
 
 Task World::sample_scenario_task(uint64_t seed, const std::string& scenario, double min_len,

@@ -3,12 +3,16 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 
+#include <filesystem>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "../support/fake_episodes.hpp"
 #include "../support/test_support.hpp"
+#include "core/build_parts.hpp"
+#include "train/device.hpp"
 
 namespace cd {
 namespace {
@@ -151,6 +155,52 @@ TEST(CliErrors, BadCommandLinesAreOneLineUsageErrors) {
   }
   const CommandResult v = test::run_cli({"--version"});
   EXPECT_TRUE(v.exited && v.exit_code == 0) << v.describe();
+}
+
+// Asking for CUDA where the build or the machine has none: one line naming which, from the
+// option and from the config alike, before anything is written. (On a CUDA machine the same
+// commands run: scripts/gpu_check.sh.)
+TEST(CliDevice, CudaWhereThereIsNoneIsOneLineNamingWhy) {
+  if (cuda_usable()) GTEST_SKIP() << "this machine has CUDA";
+  TempDir dir("cd-cli-device");
+  test::write_fake_folder(dir / "data", 3, {.frames = 30});
+  const std::string why = torch_built_with_cuda() ? "this machine has no GPU" : "has no CUDA";
+  const std::string out = dir / "run";
+  std::string line = expect_one_line_error(
+      test::run_cli({"train", "--method", "bc-oh", "--data", dir / "data", "--out", out,
+                     "--device", "cuda"}),
+      "train --device cuda");
+  EXPECT_TRUE(has(line, "train.device = \"cuda\", but ")) << line;
+  EXPECT_TRUE(has(line, why)) << line;
+  EXPECT_FALSE(std::filesystem::exists(out)) << "a refused run leaves no folder";
+
+  const std::string config = dir / "cuda.toml";
+  test::write_text(config, "[train]\ndevice = \"cuda\"\nepochs = 1\n");
+  line = expect_one_line_error(
+      test::run_cli({"train", "--config", config, "--method", "bc-oh", "--data", dir / "data",
+                     "--out", out}),
+      "train.device = cuda in the config");
+  EXPECT_TRUE(has(line, why)) << line;
+
+  line = expect_one_line_error(
+      test::run_cli({"eval", "--agent", "expert", "--suite", "quickstart", "--out", dir / "eval",
+                     "--device", "cuda"}),
+      "eval --device cuda");
+  EXPECT_TRUE(has(line, "eval.device = \"cuda\", but ")) << line;
+  EXPECT_FALSE(std::filesystem::exists(dir / "eval"));
+
+  // auto trains on the CPU and says so in the record.
+  const test::CommandResult r = test::run_cli({"train", "--method", "bc-oh", "--data",
+                                               dir / "data", "--out", out, "--epochs", "1",
+                                               "--threads", "1"});
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  const nlohmann::json ck = nlohmann::json::parse(test::read_text(out + "/checkpoint.json"));
+  EXPECT_EQ(ck.at("settings").at("train").at("device"), "auto");
+  EXPECT_EQ(ck.at("runtime").at("device"), "cpu");
+
+  const test::CommandResult v = test::run_cli({"--version"});
+  EXPECT_TRUE(has(v.out, torch_built_with_cuda() ? "CUDA: built in" : "CUDA: not built in"))
+      << v.out;
 }
 
 TEST(CliTown, ListShowsTheBuiltInTowns) {

@@ -1,6 +1,8 @@
 // MuJoCo-Image environments (src/mujoco/env*): Gym's rewards recomputed by hand from the
 // recorded state, every termination rule, seeded resets, frames.
+// needs: mujoco
 #include <gtest/gtest.h>
+#include <mujoco/mujoco.h>
 
 #include <algorithm>
 #include <cmath>

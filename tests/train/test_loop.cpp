@@ -11,6 +11,7 @@
 #include <torch/torch.h>
 
 #include "core/rng.hpp"
+#include "app/settings.hpp"
 #include "train/loop.hpp"
 
 namespace cd {
@@ -145,13 +146,18 @@ TEST(TrainLoop, StopsOnceTheLossStopsFallingByTheMargin) {
 // is not, and 512 of them add up to a normal float.
 TEST(TrainLoop, FlushDenormalsZeroesTinyProductsOnEveryThread) {
   const int threads_before = at::get_num_threads();
-  const TrainingDevice dev = training_device("cpu", 2, true);
+  TrainSettings train;
+  train.device = "cpu";
+  train.threads = 2;
+  train.flush_denormals = true;
+  const ComputeDevice dev = training_device(train);
   EXPECT_EQ(dev.name, "cpu");
   const torch::Tensor a = torch::full({512, 512}, 1e-20f);
   EXPECT_EQ(torch::count_nonzero(a * a).item<int64_t>(), 0);
   EXPECT_EQ(torch::count_nonzero(torch::mm(a, a)).item<int64_t>(), 0);
 
-  training_device("cpu", 2, false);
+  train.flush_denormals = false;
+  training_device(train);
   EXPECT_EQ(torch::count_nonzero(a * a).item<int64_t>(), 512 * 512);
   const torch::Tensor sums = torch::mm(a, a);
   EXPECT_EQ(torch::count_nonzero(sums).item<int64_t>(), 512 * 512);
