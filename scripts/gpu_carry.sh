@@ -17,12 +17,12 @@ mkdir -p .gpu/debs
 # Header libraries and GoogleTest (the rest, HDF5, Eigen, Boost, CLI11 and nlohmann-json, the
 # machine has; SUMO and MuJoCo are left out of that build).
 (cd .gpu/debs && apt-get download libtomlplusplus-dev libtomlplusplus3 libstb-dev libgtest-dev \
-  >/dev/null)
+  >/dev/null 2>&1)
 if [[ -n "$data" ]]; then
   rm -rf .gpu/data
   mkdir -p .gpu/data
   cp "$data"/*.h5 "$data"/*.json .gpu/data/ 2>/dev/null || cp -r "$data"/. .gpu/data/
 elif [[ ! -d .gpu/data ]]; then
-  build/causaldrive collect --episodes "$episodes" --out .gpu/data --quiet
+  build/causaldrive collect --episodes "$episodes" --out .gpu/data
 fi
 du -sh .gpu/debs .gpu/data

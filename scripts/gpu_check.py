@@ -17,6 +17,8 @@ BUILD = os.path.join(ROOT, os.environ.get("BUILD", "build-gpu"))
 DEBS = os.path.join(ROOT, os.environ.get("CD_DEBS", ".gpu/debs"))
 PREFIX = os.path.join(ROOT, ".gpu/prefix")
 OUT = os.environ.get("OUT") or tempfile.mkdtemp(prefix="gpu_check.")
+# DEVICE=cpu rehearses every step on a machine without a GPU (what was run where).
+DEVICE = os.environ.get("DEVICE", "cuda")
 report = {"steps": {}, "errors": []}
 
 
@@ -60,7 +62,8 @@ def environment():
     report["gpu"] = torch.cuda.get_device_name(0) if torch.cuda.is_available() else None
     report["cores"] = os.cpu_count()
     report["torch_prefix"] = torch.utils.cmake_prefix_path
-    if not torch.cuda.is_available():
+    report["device"] = DEVICE
+    if DEVICE == "cuda" and not torch.cuda.is_available():
         report["errors"].append("PyTorch sees no GPU here")
     return torch.utils.cmake_prefix_path
 
@@ -128,14 +131,19 @@ def main():
     for backbone in ("small", "resnet34"):
         for batch, precision in ((128, "fp32"), (512, "fp32"), (512, "bf16")):
             steps = "100" if backbone == "small" else "40"
+            warmup = "10"
+            if DEVICE == "cpu":  # a rehearsal: the same calls, few steps
+                if precision == "bf16":
+                    continue
+                steps, warmup = "2", "1"
             common = ["--backbone", backbone, "--batch", str(batch), "--precision", precision,
-                      "--steps", steps, "--warmup", "10"]
+                      "--steps", steps, "--warmup", warmup]
             case = {"backbone": backbone, "batch": batch, "precision": precision}
             rc, out = run(f"bench_{backbone}_{batch}_{precision}",
-                          [cd, "bench", "train", "--device", "cuda", "--json", *common], env=env)
+                          [cd, "bench", "train", "--device", DEVICE, "--json", *common], env=env)
             cpp = json.loads(out.strip().splitlines()[-1]) if rc == 0 else None
             rc, out = run(f"peer_{backbone}_{batch}_{precision}",
-                          [sys.executable, "scripts/gpu_peer.py", "--device", "cuda", *common], env=env)
+                          [sys.executable, "scripts/gpu_peer.py", "--device", DEVICE, *common], env=env)
             peer = json.loads(out.strip().splitlines()[-1]) if rc == 0 else None
             if cpp and peer:
                 case.update(cpp_samples_per_s=round(cpp["samples_per_s"], 1),
@@ -160,7 +168,7 @@ def main():
         report["data"] = data
         train = {}
         for backbone, samples in (("small", 65536), ("resnet34", 16384)):
-            for device in ("cuda", "cpu"):
+            for device in (DEVICE, "cpu"):
                 n = samples if device == "cuda" else (4096 if backbone == "small" else 512)
                 cfg = os.path.join(OUT, f"train_{backbone}_{device}.toml")
                 with open(cfg, "w") as f:
@@ -180,7 +188,7 @@ def main():
             # The loss agreement: the same samples on both devices (the CPU's count).
             n = 4096 if backbone == "small" else 512
             losses = {}
-            for device in ("cuda", "cpu"):
+            for device in (DEVICE, "cpu"):
                 cfg = os.path.join(OUT, f"agree_{backbone}.toml")
                 with open(cfg, "w") as f:
                     f.write(f'[model]\nbackbone = "{backbone}"\ndropout = 0.0\n'
@@ -193,9 +201,9 @@ def main():
                 if rc == 0:
                     ep = json.load(open(os.path.join(run_dir, "checkpoint.json")))["metrics"][0]
                     losses[device] = {"train": ep["train_loss"], "val": ep.get("val_loss")}
-            if len(losses) == 2:
-                rel = abs(losses["cuda"]["train"] - losses["cpu"]["train"]) / abs(losses["cpu"]["train"])
-                train[f"{backbone}_agreement"] = {"samples": n, "cuda": losses["cuda"], "cpu": losses["cpu"],
+            if DEVICE in losses and "cpu" in losses:
+                rel = abs(losses[DEVICE]["train"] - losses["cpu"]["train"]) / abs(losses["cpu"]["train"])
+                train[f"{backbone}_agreement"] = {"samples": n, DEVICE: losses[DEVICE], "cpu": losses["cpu"],
                                                   "relative_difference": rel, "tolerance": 0.01,
                                                   "within": rel <= 0.01}
         report["train"] = train

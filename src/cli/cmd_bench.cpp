@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "app/build_info.hpp"
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "agents/agent.hpp"
@@ -104,6 +105,7 @@ void bench_world(const Settings& s, long steps, int slices, bool json) {
                         {"full_steps_per_s", full_rate},
                         {"ratio", m.median()}};
     j.update(m.spread_json());
+    j["build"] = build_components();
     std::printf("%s\n", j.dump().c_str());
   } else {
     std::printf("world %s, %s traffic, %ld steps per loop in %d interleaved slices\n",
@@ -143,6 +145,7 @@ void bench_eval(Settings s, const std::string& agent_name, const std::string& ch
                         {"steps_per_s", rate},       {"expert_steps_per_s", expert_rate},
                         {"ratio_to_expert", m.median()}};
     j.update(m.spread_json());
+    j["build"] = build_components();
     std::printf("%s\n", j.dump().c_str());
   } else {
     std::printf("closed loop on %s, %d episodes per agent, interleaved (one process)\n",
@@ -260,6 +263,7 @@ void bench_env(const EnvBenchArgs& a) {
       j["expert_steps_per_s"] = expert_m.steps_b / expert_m.seconds_b;
       j["expert_s_per_step"] = expert_m.seconds_b / expert_m.steps_b;
     }
+    j["build"] = build_components();
     std::printf("%s\n", j.dump().c_str());
     return;
   }
@@ -317,6 +321,7 @@ void bench_expert(const std::string& env_name, const mj::PlannerOptions& options
                         {"s_per_step", seconds / std::max(1, done)},
                         {"simulated_steps", expert.simulated_steps()},
                         {"action_lag1_r2", std::isfinite(r2) ? nlohmann::json(r2) : nlohmann::json()}};
+    j["build"] = build_components();
     std::printf("%s\n", j.dump().c_str());
   } else {
     std::printf("%s, %s, seed %llu: return %.1f over %d steps%s, %.3f s/step (%.0f s), "
@@ -433,7 +438,9 @@ void add_bench(CLI::App& app) {
     o.width = o.height;
     const nlohmann::json r = bench_train_step(o);
     if (*json) {
-      std::printf("%s\n", r.dump().c_str());
+      nlohmann::json j = r;
+      j["build"] = build_components();
+      std::printf("%s\n", j.dump().c_str());
       return;
     }
     std::printf("%s %s on %s (%s), batch %d: %.0f samples/s over %d steps (%ld parameters)\n",

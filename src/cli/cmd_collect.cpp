@@ -2,6 +2,7 @@
 #include <map>
 
 #include "cli/commands.hpp"
+#include "core/build_parts.hpp"
 #include "core/mpi.hpp"
 #include "cli/common.hpp"
 #include "collect/collect.hpp"
@@ -33,6 +34,7 @@ void collect_mujoco(const CollectArgs& a) {
                                     {!a.png.empty(), "--png"}}) {
     if (given) throw ConfigError(std::string(flag) + " is a driving option; it does not apply with --env");
   }
+  require_mujoco("collect --env");
   mj::env_spec(a.env);  // an unknown env: one line, before the config is read
   const Settings s = settings_from(a.config);
   const MujocoSettings& m = s.mujoco;

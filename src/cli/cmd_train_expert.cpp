@@ -3,6 +3,7 @@
 #include <string>
 
 #include "cli/commands.hpp"
+#include "core/build_parts.hpp"
 #include "core/progress.hpp"
 #include "mujoco/env_spec.hpp"
 #include "mujoco/sac.hpp"
@@ -39,6 +40,7 @@ void add_train_expert(CLI::App& app) {
   sub->add_option("--device", o->device, "where the networks train: auto | cpu | cuda (default cpu)")
       ->check(CLI::IsMember({"auto", "cpu", "cuda"}));
   sub->callback([o, env, out] {
+    require_mujoco("train-expert");
     mj::env_spec(*env);  // an unknown env: one line
     const std::string path = out->empty() ? "experts/" + *env + ".pt" : *out;
     const mj::SacReport r = mj::train_sac(*env, *o, path, [](const std::string& l) { log_line(l); });

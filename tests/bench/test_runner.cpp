@@ -4,6 +4,7 @@
 //
 // libsumo runs one simulation per process and ctest runs every TEST in its own process, so
 // each TEST below creates at most one World.
+// needs: sumo
 #include "bench/runner.hpp"
 
 #include <gtest/gtest.h>

@@ -46,6 +46,7 @@ TEST(BenchSuites, BuiltInSuitesMatchTheContract) {
 }
 
 TEST(BenchSuites, RegeneratingGivesTheFilesInTheRepo) {
+  CD_NEEDS_SUMO();
   TempDir dir("cdtest-suites");
   auto r = test::run_cli({"suite", "--builtin", "all", "--out", dir.path()});
   ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
@@ -57,6 +58,7 @@ TEST(BenchSuites, RegeneratingGivesTheFilesInTheRepo) {
 }
 
 TEST(BenchSuites, DamagedSuiteFileIsOneClearError) {
+  CD_NEEDS_SUMO();
   TempDir dir("cdtest-suites");
   test::write_text(dir / "bad.json", "{\"format\": 1, \"name\": \"x\"");
   auto r = test::run_cli({"eval", "--agent", "expert", "--suite", dir / "bad.json", "--out",

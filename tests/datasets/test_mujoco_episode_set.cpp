@@ -33,6 +33,7 @@ std::string tiny_folder(const test::TempDir& dir) {
 }
 
 TEST(MujocoEpisodeSet, LoadsRgbBytesAsRecorded) {
+  CD_NEEDS_MUJOCO();
   test::TempDir dir("cdtest-mjset");
   const std::string data = tiny_folder(dir);
   EXPECT_EQ(data_domain(data), "mujoco");
@@ -71,6 +72,7 @@ TEST(MujocoEpisodeSet, LoadsRgbBytesAsRecorded) {
 }
 
 TEST(MujocoEpisodeSet, DatasetSamplesCarryTheEnvsActions) {
+  CD_NEEDS_MUJOCO();
   test::TempDir dir("cdtest-mjset");
   DatasetOptions opt;
   opt.history = 2;

@@ -1,5 +1,6 @@
 // Expert data collection through the real CLI: files and their layout (checked with h5py),
 // determinism, resuming after the whole process group was killed, PNG frames.
+// needs: sumo
 #include <gtest/gtest.h>
 #include <signal.h>
 

@@ -2,6 +2,7 @@
 // expert's labels (with beta 1 the expert drives, so they are exactly the expert's collect of
 // the same episode seeds), the aggregate is every frame of the data and the rollouts, the
 // record counts the labels, and a run killed after an iteration resumes to the same bytes.
+// needs: sumo
 #include <gtest/gtest.h>
 
 #include <filesystem>

@@ -63,6 +63,7 @@ TEST(DimCli, ViewLimitsTheChannelsTheModelSees) {
 }
 
 TEST(DimCli, WrongFoldersGiveOneLineErrors) {
+  CD_NEEDS_SUMO();
   TempDir dir("cd-dim");
   test::write_toy_folder(dir / "data", 3);
   const std::string cfg = dir / "c.toml";

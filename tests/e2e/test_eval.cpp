@@ -1,6 +1,7 @@
 // `causaldrive eval` end to end with the expert and cs agents: the results' contract keys,
 // determinism whatever the worker count, resume after kill -9, crashed episodes retried and
 // never counted as policy failures, one-line errors.
+// needs: sumo
 #include <gtest/gtest.h>
 #include <signal.h>
 

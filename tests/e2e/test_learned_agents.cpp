@@ -21,6 +21,7 @@ using nlohmann::json;
 // The runner feeds a learned agent real-frame histories, and its results are reproducible:
 // evaluated twice with different worker counts, the bytes are the same.
 TEST(BenchEval, LearnedAgentEvaluatesReproducibly) {
+  CD_NEEDS_SUMO();
   test::TinyRun run({.method = "bc-oh",
                      .traffic = "regular",
                      .extra = "\n[train]\nepochs = 1\nmax_samples = 300\nthreads = 1\n"
@@ -37,6 +38,7 @@ TEST(BenchEval, LearnedAgentEvaluatesReproducibly) {
 }
 
 TEST(DimCli, TrainsAndDrivesInTheSimulator) {
+  CD_NEEDS_SUMO();
   test::TinyRun run({.method = "dim",
                      .traffic = "empty",
                      .extra = "\n[train]\nepochs = 1\nmax_samples = 400\nthreads = 1\n"
@@ -84,6 +86,7 @@ TEST(DimCli, TrainsAndDrivesInTheSimulator) {
 // steer) data and dim (steering along its plan) are accepted and drive; their episodes record
 // the lateral error. A policy trained without steer is refused there with one line.
 TEST(SteeringAgents, TrainedOnSteeringDataTheyDriveAFreeEgo) {
+  CD_NEEDS_SUMO();
   const std::string free = "\n[ego]\nlateral = \"free\"\n";
   const std::string route = "\n[ego]\nlateral = \"route\"\n";
   test::TinyRun bc({.method = "bc-so",
@@ -144,6 +147,7 @@ TEST(SteeringAgents, TrainedOnSteeringDataTheyDriveAFreeEgo) {
 }
 
 TEST(SteeringAgents, APolicyTrainedWithoutSteerIsRefusedOnAFreeEgo) {
+  CD_NEEDS_SUMO();
   test::TinyRun route({.method = "bc-so",
                        .traffic = "empty",
                        .extra = "\n[ego]\nlateral = \"route\"\n"
@@ -158,6 +162,7 @@ TEST(SteeringAgents, APolicyTrainedWithoutSteerIsRefusedOnAFreeEgo) {
 }
 
 TEST(CimEval, TinyRunDrivesInTheSimulator) {
+  CD_NEEDS_SUMO();
   test::TinyRun run({.method = "cim",
                      .traffic = "empty",
                      .extra = "\n[vae]\nlatents = 16\nepochs = 1\nmax_frames = 300\n"

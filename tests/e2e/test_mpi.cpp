@@ -77,6 +77,7 @@ std::map<std::string, std::string> tree_bytes(const std::string& root) {
 }
 
 TEST_F(MpiJobs, EvalAndCollectOnThreeRanksWriteTheBytesOfTwoWorkers) {
+  CD_NEEDS_SUMO();
   const std::string cfg = test::write_test_config(dir, "regular");
   const std::string suite = small_suite(dir, 5);
   test::run_cli_ok(test::eval_args(cfg, "cs", "", suite, dir / "workers", 2));
@@ -106,6 +107,7 @@ TEST_F(MpiJobs, EvalAndCollectOnThreeRanksWriteTheBytesOfTwoWorkers) {
 }
 
 TEST_F(MpiJobs, AKilledJobResumesUnderEitherLauncherToTheUninterruptedBytes) {
+  CD_NEEDS_SUMO();
   const std::string cfg = test::write_test_config(dir, "regular");
   const std::string suite = small_suite(dir, 7);
   test::run_cli_ok(test::eval_args(cfg, "expert", "", suite, dir / "ref", 2));
@@ -127,6 +129,7 @@ TEST_F(MpiJobs, AKilledJobResumesUnderEitherLauncherToTheUninterruptedBytes) {
 }
 
 TEST_F(MpiJobs, AFailingEpisodeIsNamedWithItsRankAndHost) {
+  CD_NEEDS_SUMO();
   const std::string cfg = test::write_test_config(dir);
   test::ScopedEnv crash("CAUSALDRIVE_INJECT_CRASH", "eval:2:always");  // every run of episode 2
   auto r = mpirun(2, test::eval_args(cfg, "expert", "", "quickstart", dir / "out", 1));
@@ -141,6 +144,7 @@ TEST_F(MpiJobs, AFailingEpisodeIsNamedWithItsRankAndHost) {
 }
 
 TEST_F(MpiJobs, MujocoCollectSpreadsTheSameWayAndAHeldFolderStopsEveryRank) {
+  CD_NEEDS_MUJOCO();
   const std::vector<std::string> job = {"collect", "--env", "hopper", "--episodes", "3",
                                         "--max-steps", "12"};
   test::run_cli_ok(test::with(job, {"--workers", "2", "--out", dir / "workers"}));
@@ -172,6 +176,7 @@ TEST_F(MpiJobs, CommandsThatDoNotSpreadAreRefusedInOneLine) {
 // --- the lock through the CLI -------------------------------------------------------------
 
 TEST(RunLockCli, ASecondEvalIntoAHeldFolderIsRefusedAndTheFirstRunsFilesStay) {
+  CD_NEEDS_SUMO();
   TempDir dir("cdtest-lock");
   const std::string cfg = test::write_test_config(dir);
   const std::string out = dir / "out";
@@ -188,6 +193,7 @@ TEST(RunLockCli, ASecondEvalIntoAHeldFolderIsRefusedAndTheFirstRunsFilesStay) {
 }
 
 TEST(RunLockCli, ConcurrentTrainIntoOneFolderIsRefusedNamingTheFirst) {
+  CD_NEEDS_SUMO();
   test::TinyRun tiny({.method = "bc-oh", .extra = "\n[train]\nepochs = 2\n"});
   const std::string data = tiny.data(), out = tiny.dir() / "run";
   // The first train is frozen (SIGSTOP) once it holds the folder, so the second meets it.
@@ -211,6 +217,7 @@ TEST(RunLockCli, ConcurrentTrainIntoOneFolderIsRefusedNamingTheFirst) {
 }
 
 TEST(RunLockCli, AStaleLockOfADeadProcessIsTakenOverAndSaid) {
+  CD_NEEDS_SUMO();
   TempDir dir("cdtest-lock");
   const std::string cfg = test::write_test_config(dir);
   const std::string out = dir / "out";

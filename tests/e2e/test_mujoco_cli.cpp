@@ -30,6 +30,7 @@ bool has(const std::string& text, const std::string& part) {
 }
 
 TEST(CliMujoco, UnknownEnvIsOneLine) {
+  CD_NEEDS_MUJOCO();
   TempDir dir("cdtest-mjcli");
   const std::string line = one_line_error(
       test::run_cli({"collect", "--env", "cheetah", "--out", dir / "data"}), "unknown env");
@@ -38,6 +39,7 @@ TEST(CliMujoco, UnknownEnvIsOneLine) {
 }
 
 TEST(CliMujoco, MissingModelFileIsOneLine) {
+  CD_NEEDS_MUJOCO();
   TempDir dir("cdtest-mjcli");
   test::ScopedEnv assets("CAUSALDRIVE_MUJOCO_ASSETS", dir / "nowhere");
   const std::string line = one_line_error(
@@ -54,6 +56,7 @@ TEST(CliMujoco, DrivingOptionsAreRefusedWithEnv) {
 }
 
 TEST(CliMujoco, CollectsATinyDatasetAndResumes) {
+  CD_NEEDS_MUJOCO();
   TempDir dir("cdtest-mjcli");
   const std::vector<std::string> args = {"collect", "--env", "reacher", "--episodes", "1",
                                          "--max-steps", "3", "--planner-samples", "4",
@@ -83,6 +86,7 @@ TEST(CliMujoco, CollectsATinyDatasetAndResumes) {
 }
 
 TEST(CliMujoco, BenchEnvJsonHasPhysicsRenderAndEverySize) {
+  CD_NEEDS_MUJOCO();
   const CommandResult r =
       test::run_cli({"bench", "env", "--env", "hopper", "--steps", "40", "--slices", "2",
                      "--size", "16,24", "--expert-steps", "1", "--json"});
@@ -107,12 +111,14 @@ TEST(CliMujoco, BenchEnvJsonHasPhysicsRenderAndEverySize) {
 }
 
 TEST(CliMujoco, BenchEnvUnknownEnvIsOneLine) {
+  CD_NEEDS_MUJOCO();
   const std::string line =
       one_line_error(test::run_cli({"bench", "env", "--env", "walker", "--json"}), "bench env");
   EXPECT_TRUE(has(line, "unknown MuJoCo environment 'walker'")) << line;
 }
 
 TEST(CliMujoco, BenchExpertReportsReturnAndCostAndIsSeeded) {
+  CD_NEEDS_MUJOCO();
   const std::vector<std::string> args = {"bench", "expert", "--env", "reacher", "--steps", "3",
                                          "--samples", "4", "--horizon", "2", "--seed", "7",
                                          "--json"};
@@ -136,6 +142,7 @@ TEST(CliMujoco, BenchExpertReportsReturnAndCostAndIsSeeded) {
 // expert (the file says so, and the labels are its deterministic actions: the same on a rerun
 // into another folder); a folder without the env's policy is one line naming the file.
 TEST(CliMujoco, TrainExpertThenCollectWithIt) {
+  CD_NEEDS_MUJOCO();
   TempDir dir("cdtest-mjcli");
   CommandResult r = test::run_cli({"train-expert", "--env", "reacher", "--out",
                                    dir / "experts/reacher.pt", "--steps", "300", "--start-steps",

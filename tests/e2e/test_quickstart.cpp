@@ -1,5 +1,6 @@
 // The main job end to end on a tiny config: collect, train bc-oh and cim, evaluate four agents,
 // print the table, and resume everything when run again.
+// needs: sumo
 #include <gtest/gtest.h>
 
 #include <filesystem>

@@ -43,6 +43,7 @@ std::string read_bytes(const std::string& p) {
 }
 
 TEST(MujocoCollect, EpisodeFileRoundTrips) {
+  CD_NEEDS_MUJOCO();
   test::TempDir dir("cdtest-mj");
   const CollectOptions o = tiny(dir.path(), "hopper");
   const MujocoEpisode e = record_episode(o, 0);
@@ -81,6 +82,7 @@ TEST(MujocoCollect, DrivingReaderAndMujocoReaderRefuseEachOthersFiles) {
 }
 
 TEST(MujocoCollect, H5pyReadsTheDataset) {
+  CD_NEEDS_MUJOCO();
   test::TempDir dir("cdtest-mj");
   CollectOptions o = tiny(dir / "data");
   o.episodes = 1;
@@ -125,6 +127,7 @@ check(m["env"] == "reacher" and len(m["episodes"]) == 1, "collect.json")
 }
 
 TEST(MujocoCollect, SameSeedSameBytesAndResume) {
+  CD_NEEDS_MUJOCO();
   test::TempDir dir("cdtest-mj");
   const CollectReport a = collect(tiny(dir / "a"));
   const CollectReport b = collect(tiny(dir / "b"));
@@ -143,6 +146,7 @@ TEST(MujocoCollect, SameSeedSameBytesAndResume) {
 }
 
 TEST(MujocoCollect, NoiseRowsAreFlaggedAndLabelsStayTheExperts) {
+  CD_NEEDS_MUJOCO();
   test::TempDir dir("cdtest-mj");
   CollectOptions o = tiny(dir.path());
   o.noise.enabled = true;
@@ -161,6 +165,7 @@ TEST(MujocoCollect, NoiseRowsAreFlaggedAndLabelsStayTheExperts) {
 }
 
 TEST(MujocoCollect, UnknownEnvAndMissingModelAreOneLineErrors) {
+  CD_NEEDS_MUJOCO();
   test::TempDir dir("cdtest-mj");
   CollectOptions o = tiny(dir / "out", "cheetah");
   EXPECT_THROW(collect(o), ConfigError);
@@ -176,6 +181,7 @@ TEST(MujocoCollect, UnknownEnvAndMissingModelAreOneLineErrors) {
 }
 
 TEST(MujocoExpert, QueryableAtAnyStateWithinBoundsAndSeeded) {
+  CD_NEEDS_MUJOCO();
   PlannerOptions p;
   p.samples = 8;
   p.horizon = 4;
@@ -246,6 +252,7 @@ TEST(MujocoExpert, DefaultsFillOnlyWhatIsUnsetAndBadSmoothingIsOneLine) {
 }
 
 TEST(MujocoExpert, IterationsCostSamplesTimesHorizonEachAndSmoothingStaysSeeded) {
+  CD_NEEDS_MUJOCO();
   PlannerOptions p;
   p.samples = 6;
   p.horizon = 3;
@@ -267,6 +274,7 @@ TEST(MujocoExpert, IterationsCostSamplesTimesHorizonEachAndSmoothingStaysSeeded)
 // The planner does what it is for: on reacher (no termination, cheap), a few steps of it bring
 // the fingertip nearer the target than doing nothing does.
 TEST(MujocoExpert, ReacherPlannerBeatsDoingNothing) {
+  CD_NEEDS_MUJOCO();
   PlannerOptions p;
   p.samples = 16;
   p.horizon = 10;

@@ -2,6 +2,7 @@
 // whose evaluation the record reports (replayed here through PolicyExpert on the same seeded
 // episode), the policy input drops the root position, the expert a config selects, and the
 // errors of a missing or mismatched policy file.
+// needs: mujoco
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -8,6 +8,21 @@ import unittest
 
 BIN = os.environ.get("CAUSALDRIVE_BIN", "build/causaldrive")
 
+
+def _built_with(part):
+    """Whether the binary was built with an optional part ("SUMO", "MuJoCo"): its --version."""
+    try:
+        out = subprocess.run([BIN, "--version"], capture_output=True, text=True).stdout
+    except OSError:
+        return True  # no binary: the tests say so themselves
+    return (part + ": no") not in out
+
+
+# A test that needs an optional part of the build (docs/gpu.md) is skipped without it; a file
+# that needs one throughout says "# needs: PART" in its first lines and CMake leaves it out.
+needs_sumo = unittest.skipUnless(_built_with("SUMO"), "needs SUMO (-DCD_WITH_SUMO=OFF)")
+needs_mujoco = unittest.skipUnless(_built_with("MuJoCo"), "needs MuJoCo (-DCD_WITH_MUJOCO=OFF)")
+
 # A fast world for tests (as tests/support/test_support.hpp's test config): town-a, a short
 # warm-up, short routes.
 FAST = {"world.town": "town-a", "world.warmup_s": 5.0, "collect.min_route_m": 100.0,

@@ -1,3 +1,4 @@
+# needs: sumo
 """causaldrive.load_episode against h5py (the independent reader), and its errors."""
 import glob
 import os

@@ -1,3 +1,4 @@
+# needs: sumo
 """causaldrive.make for driving: the Gymnasium loop, spaces, the collect oracle, errors."""
 import glob
 import os

@@ -1,3 +1,4 @@
+# needs: sumo
 """causaldrive.evaluate: the benchmark runner with a Python policy reproduces `eval`."""
 import json
 import os

@@ -1,3 +1,4 @@
+# needs: sumo, mujoco
 """`report --html` (SPEC section 13) and `eval --record`: the page holds every table row `report`
 prints with the same numbers; the recorded frames are the observations the agent received
 (h5py against what a Python policy was given); in headless Chromium the page opens from its

@@ -1,3 +1,4 @@
+# needs: mujoco
 """causaldrive.make for MuJoCo-Image: spaces, Gym's loop, and `collect --env` as the oracle."""
 import glob
 import os

@@ -1,3 +1,4 @@
+# needs: sumo
 """The Python example of docs/python.md runs as written (from a scratch folder, against the build)."""
 import os
 import re

@@ -7,7 +7,7 @@ import os
 import subprocess
 import unittest
 
-from support import BIN, TempDirCase
+from support import BIN, TempDirCase, needs_sumo
 
 SOURCE = os.environ.get("CAUSALDRIVE_SOURCE_DIR",
                         os.path.join(os.path.dirname(__file__), "..", ".."))
@@ -133,6 +133,7 @@ class KeptTrainTest(TempDirCase):
             self.assertEqual(f.read(), "weights")
 
 
+@needs_sumo
 class SuiteOfTest(TempDirCase):
     """paper_lib.sh's suite_of: a suite of $TASKS tasks generated from the name's fixed seed."""
 

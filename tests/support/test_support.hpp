@@ -26,6 +26,22 @@
 #include <thread>
 #include <vector>
 
+#include <gtest/gtest.h>
+
+#include "core/build_parts.hpp"
+
+// A test that needs an optional part of the build (docs/gpu.md) starts with one of these: in a
+// build without that part it is skipped, saying why. (A test file that cannot even compile
+// without the part says "// needs: PART" in its first lines instead; CMake leaves it out.)
+#define CD_NEEDS_SUMO()                                                                 \
+  do {                                                                                  \
+    if (!::cd::built_with_sumo()) GTEST_SKIP() << "needs SUMO (-DCD_WITH_SUMO=OFF)";    \
+  } while (0)
+#define CD_NEEDS_MUJOCO()                                                                   \
+  do {                                                                                      \
+    if (!::cd::built_with_mujoco()) GTEST_SKIP() << "needs MuJoCo (-DCD_WITH_MUJOCO=OFF)";  \
+  } while (0)
+
 namespace cd::test {
 
 namespace fs = std::filesystem;

@@ -198,11 +198,13 @@ void expert_drives(const std::string& town, uint64_t seed) {
 }
 
 TEST(SteeringExpert, DrivesEveryBuiltInTown) {
+  CD_NEEDS_SUMO();
   for (const char* town : {"town-a", "town-b", "town-c"})
     for (uint64_t seed : {1, 2}) expert_drives(town, seed);
 }
 
 TEST(SteeringExpert, DrivesARandomNetworkItHasNeverSeen) {
+  CD_NEEDS_SUMO();
   test::TempDir dir("cdtest-steer-net");
   const std::string net = dir / "random.net.xml";
   const test::CommandResult r = test::run_command(
@@ -220,6 +222,7 @@ TEST(SteeringExpert, DrivesARandomNetworkItHasNeverSeen) {
 // lane), each counted once, and the episode ends as `offroad` once no point of the footprint is
 // on a driving lane. Before the first swerve, driving on its own lane raises nothing.
 TEST(WorldEvents, ScriptedSwerveInvadesGoesWrongWayThenLeavesTheRoad) {
+  CD_NEEDS_SUMO();
   test::TempDir dir("cdtest-steer-events");
   const Settings s = free_settings(dir, "town-a");
   World w(s);
@@ -279,6 +282,7 @@ TEST(WorldEvents, ScriptedSwerveInvadesGoesWrongWayThenLeavesTheRoad) {
 // left from it need a lane change, which the expert makes (SUMO's stand-in follows it to the
 // new lane); SUMO cannot drive such a route for a route-mode ego, which refuses the task.
 TEST(SteeringExpert, ChangesLanesWhereTheRouteNeedsIt) {
+  CD_NEEDS_SUMO();
   test::TempDir dir("cdtest-steer-lc");
   Task task;
   {
@@ -308,6 +312,7 @@ TEST(SteeringExpert, ChangesLanesWhereTheRouteNeedsIt) {
 // changes only once it is clear of the car (its front more than a car length and a gap ahead),
 // and drives the route to its end.
 TEST(SteeringExpert, ChangesLanesOnlyWhereTheTargetLaneIsClear) {
+  CD_NEEDS_SUMO();
   test::TempDir dir("cdtest-steer-lc-gap");
   const Settings s = free_settings(dir, "town-c");
   World w(s);

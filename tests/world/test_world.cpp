@@ -138,6 +138,7 @@ double stopping_distance(const EgoModel& m, double v, double dt) {
 // Reset and stepping
 
 TEST(WorldStep, ResetStartsStoppedAndFullThrottleAccelerates) {
+  CD_NEEDS_SUMO();
   Settings s = test_settings();
   World w(s);
   Task task = w.sample_task(0, 100, 200);
@@ -183,6 +184,7 @@ TEST(WorldStep, ResetStartsStoppedAndFullThrottleAccelerates) {
 }
 
 TEST(WorldStep, SpeedNeverExceedsEgoMaxSpeed) {
+  CD_NEEDS_SUMO();
   Settings s = test_settings();
   s.ego.max_speed = 6.0;
   World w(s);
@@ -200,6 +202,7 @@ TEST(WorldStep, SpeedNeverExceedsEgoMaxSpeed) {
 }
 
 TEST(WorldStep, StepAfterTheEndThrowsAndResetRestarts) {
+  CD_NEEDS_SUMO();
   Settings s = test_settings();
   World w(s);
   Task task = w.sample_task(0, 100, 200);
@@ -220,6 +223,7 @@ TEST(WorldStep, StepAfterTheEndThrowsAndResetRestarts) {
 }
 
 TEST(WorldStep, SecondWorldThrowsWhileFirstIsAliveThenNewWorldWorks) {
+  CD_NEEDS_SUMO();
   Settings s = test_settings();
   {
     World first(s);
@@ -418,6 +422,7 @@ TEST(BoxesOverlap, BoxFromSumoFront) {
 // Collisions in the live world
 
 TEST(WorldCollision, FullThrottleIntoStoppedVehicleCollides) {
+  CD_NEEDS_SUMO();
   World w(test_settings());
   ASSERT_FALSE(reset_with_room(w, 45).route.empty());
   const std::string lane = w.route_lanes().front();
@@ -443,6 +448,7 @@ TEST(WorldCollision, FullThrottleIntoStoppedVehicleCollides) {
 }
 
 TEST(WorldCollision, StoppedEgoRearEndedWasStruck) {
+  CD_NEEDS_SUMO();
   World w(test_settings());
   ASSERT_FALSE(reset_with_room(w, 45).route.empty());
   const std::string lane = w.ego().lane;
@@ -469,6 +475,7 @@ TEST(WorldCollision, StoppedEgoRearEndedWasStruck) {
 }
 
 TEST(WorldCollision, FullThrottleIntoAPedestrianIsAPedestrianCollision) {
+  CD_NEEDS_SUMO();
   World w(test_settings());
   ASSERT_FALSE(reset_with_room(w, 45).route.empty());
   const Pose2 e = w.ego().pose;
@@ -489,6 +496,7 @@ TEST(WorldCollision, FullThrottleIntoAPedestrianIsAPedestrianCollision) {
 }
 
 TEST(WorldCollision, BrakingToAStopJustBehindIsNoCollision) {
+  CD_NEEDS_SUMO();
   Settings s = test_settings();
   World w(s);
   ASSERT_FALSE(reset_with_room(w, 45).route.empty());
@@ -524,6 +532,7 @@ TEST(WorldCollision, BrakingToAStopJustBehindIsNoCollision) {
 }
 
 TEST(WorldCollision, OncomingVehicleOnTheOppositeLaneIsNoCollision) {
+  CD_NEEDS_SUMO();
   World w(test_settings());
   ASSERT_FALSE(reset_with_room(w, 45, /*grid_edge=*/true).route.empty());
   const LaneGeom* own = w.map().find(w.route_lanes().front());
@@ -593,6 +602,7 @@ struct RedLightOracle {
 };
 
 TEST(WorldRedLight, FullThrottleRunsRedLightsAndTheyAreCounted) {
+  CD_NEEDS_SUMO();
   Settings s = test_settings();
   World w(s);
   int total_reported = 0, total_oracle = 0, total_passages = 0;
@@ -625,6 +635,7 @@ TEST(WorldRedLight, FullThrottleRunsRedLightsAndTheyAreCounted) {
 }
 
 TEST(WorldRedLight, ExpertNeverRunsARedLight) {
+  CD_NEEDS_SUMO();
   Settings s = test_settings();
   World w(s);
   Autopilot expert(s.expert);
@@ -659,6 +670,7 @@ TEST(WorldRedLight, ExpertNeverRunsARedLight) {
 // not the ground truth. A free ego's SUMO stand-in often stands for a step at the very end of
 // its approach lane, where the light is 0 m ahead: such entries were once missed.
 TEST(WorldRedLight, EveryLightOnTheRouteIsOneJunctionEntryInBothModes) {
+  CD_NEEDS_SUMO();
   for (const char* mode : {"route", "free"}) {
     Settings s = test_settings();
     s.ego.lateral = mode;
@@ -691,6 +703,7 @@ TEST(WorldRedLight, EveryLightOnTheRouteIsOneJunctionEntryInBothModes) {
 // BEV of the live world
 
 TEST(WorldBev, VehicleAheadLandsWhereTheConventionSays) {
+  CD_NEEDS_SUMO();
   Settings s = test_settings();
   World w(s);
   ASSERT_FALSE(reset_with_room(w, 30).route.empty());
@@ -740,6 +753,7 @@ TEST(WorldBev, VehicleAheadLandsWhereTheConventionSays) {
 // Ground truth
 
 TEST(WorldTruth, LeadDistanceAndPathFree) {
+  CD_NEEDS_SUMO();
   Settings s = test_settings();
   World w(s);
   Task task = reset_with_room(w, 50);
@@ -781,12 +795,14 @@ TEST(WorldTruth, LeadDistanceAndPathFree) {
 // Errors
 
 TEST(WorldErrors, MissingNetworkFileIsIoError) {
+  CD_NEEDS_SUMO();
   Settings s = test_settings();
   s.world.town = "/nonexistent.net.xml";
   EXPECT_THROW({ World w(s); }, IoError);
 }
 
 TEST(WorldErrors, GarbageNetworkFileIsSimErrorNamingTheFile) {
+  CD_NEEDS_SUMO();
   TempDir dir("cdtest-world");
   const std::string net = dir / "x.net.xml";
   test::write_text(net, "not xml\n");
@@ -806,6 +822,7 @@ TEST(WorldErrors, GarbageNetworkFileIsSimErrorNamingTheFile) {
 }
 
 TEST(WorldErrors, UnknownTownNameIsConfigError) {
+  CD_NEEDS_SUMO();
   Settings s = test_settings();
   s.world.town = "town-zzz";
   try {
