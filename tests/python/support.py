@@ -1,4 +1,5 @@
 """What the Python tests share: the binary, temporary folders, a fast test config."""
+import functools
 import json
 import os
 import shutil
@@ -9,19 +10,26 @@ import unittest
 BIN = os.environ.get("CAUSALDRIVE_BIN", "build/causaldrive")
 
 
-def _built_with(part):
-    """Whether the binary was built with an optional part ("SUMO", "MuJoCo"): its --version."""
+@functools.lru_cache(maxsize=None)
+def _version():
     try:
-        out = subprocess.run([BIN, "--version"], capture_output=True, text=True).stdout
+        return subprocess.run([BIN, "--version"], capture_output=True, text=True).stdout
     except OSError:
-        return True  # no binary: the tests say so themselves
-    return (part + ": no") not in out
+        return ""  # no binary: the tests say so themselves
+
+
+def _needs(part, option):
+    """A decorator: the test is skipped in a build without an optional part ("SUMO", "MuJoCo"),
+    as `causaldrive --version` says (asked once, by the files that use it)."""
+    def decorate(test):
+        return unittest.skipIf(part + ": no" in _version(), "needs %s (-D%s=OFF)" % (part, option))(test)
+    return decorate
 
 
 # A test that needs an optional part of the build (docs/gpu.md) is skipped without it; a file
 # that needs one throughout says "# needs: PART" in its first lines and CMake leaves it out.
-needs_sumo = unittest.skipUnless(_built_with("SUMO"), "needs SUMO (-DCD_WITH_SUMO=OFF)")
-needs_mujoco = unittest.skipUnless(_built_with("MuJoCo"), "needs MuJoCo (-DCD_WITH_MUJOCO=OFF)")
+needs_sumo = _needs("SUMO", "CD_WITH_SUMO")
+needs_mujoco = _needs("MuJoCo", "CD_WITH_MUJOCO")
 
 # A fast world for tests (as tests/support/test_support.hpp's test config): town-a, a short
 # warm-up, short routes.
