@@ -161,49 +161,44 @@ def main():
                           "cpp_samples_per_s": round(json.loads(out.strip().splitlines()[-1])["samples_per_s"], 1)})
     report["bench_train"] = bench
 
-    # bc-oh trained by `causaldrive train` on the data folder (loading included), CUDA and CPU,
-    # one epoch of a fixed number of samples; the first epoch's loss of the same seed on both
-    # (dropout off: its masks come from each device's own generator).
+    # bc-oh trained by `causaldrive train` on the data folder (loading included), on the device and
+    # on the CPU cores, one epoch of a fixed number of samples; the first epoch's loss of the same
+    # seed and samples on both (dropout off: its masks come from each device's own generator).
+    def train_bc_oh(label, backbone, device, samples):
+        """The first epoch's metrics and runtime of one run, or None when it failed."""
+        cfg = os.path.join(OUT, label + ".toml")
+        with open(cfg, "w") as f:
+            f.write(f'[model]\nbackbone = "{backbone}"\ndropout = 0.0\n'
+                    f'[train]\nepochs = 1\nbatch_size = 128\nepoch_samples = {samples}\n'
+                    f'threads = {os.cpu_count()}\nval_fraction = 0.1\n')
+        run_dir = os.path.join(OUT, label)
+        rc, _ = run(label, [cd, "train", "--method", "bc-oh", "--data", data, "--config", cfg,
+                            "--out", run_dir, "--device", device], env=env)
+        if rc != 0:
+            return None
+        ck = json.load(open(os.path.join(run_dir, "checkpoint.json")))
+        ep = ck["metrics"][0]
+        return {"samples": samples, "samples_per_s": round(ep["samples_per_s"], 1),
+                "train_loss": ep["train_loss"], "val_loss": ep.get("val_loss"),
+                "runtime": ck.get("runtime")}
+
     if data:
         report["data"] = data
         train = {}
-        for backbone, samples in (("small", 65536), ("resnet34", 16384)):
-            for device in (DEVICE, "cpu"):
-                n = samples if device == "cuda" else (4096 if backbone == "small" else 512)
-                cfg = os.path.join(OUT, f"train_{backbone}_{device}.toml")
-                with open(cfg, "w") as f:
-                    f.write(f'[model]\nbackbone = "{backbone}"\ndropout = 0.0\n'
-                            f'[train]\nepochs = 1\nbatch_size = 128\nepoch_samples = {n}\n'
-                            f'threads = {os.cpu_count()}\nval_fraction = 0.1\n')
-                run_dir = os.path.join(OUT, f"run_{backbone}_{device}")
-                rc, out = run(f"train_{backbone}_{device}",
-                              [cd, "train", "--method", "bc-oh", "--data", data, "--config", cfg,
-                               "--out", run_dir, "--device", device], env=env)
-                if rc == 0:
-                    ck = json.load(open(os.path.join(run_dir, "checkpoint.json")))
-                    ep = ck["metrics"][0]
-                    train[f"{backbone}_{device}"] = {"samples": n, "samples_per_s": round(ep["samples_per_s"], 1),
-                                                     "train_loss": ep["train_loss"],
-                                                     "runtime": ck.get("runtime")}
-            # The loss agreement: the same samples on both devices (the CPU's count).
-            n = 4096 if backbone == "small" else 512
-            losses = {}
-            for device in (DEVICE, "cpu"):
-                cfg = os.path.join(OUT, f"agree_{backbone}.toml")
-                with open(cfg, "w") as f:
-                    f.write(f'[model]\nbackbone = "{backbone}"\ndropout = 0.0\n'
-                            f'[train]\nepochs = 1\nbatch_size = 128\nepoch_samples = {n}\n'
-                            f'threads = {os.cpu_count()}\nval_fraction = 0.1\n')
-                run_dir = os.path.join(OUT, f"agree_{backbone}_{device}")
-                rc, _ = run(f"agree_{backbone}_{device}",
-                            [cd, "train", "--method", "bc-oh", "--data", data, "--config", cfg,
-                             "--out", run_dir, "--device", device], env=env)
-                if rc == 0:
-                    ep = json.load(open(os.path.join(run_dir, "checkpoint.json")))["metrics"][0]
-                    losses[device] = {"train": ep["train_loss"], "val": ep.get("val_loss")}
-            if DEVICE in losses and "cpu" in losses:
-                rel = abs(losses[DEVICE]["train"] - losses["cpu"]["train"]) / abs(losses["cpu"]["train"])
-                train[f"{backbone}_agreement"] = {"samples": n, DEVICE: losses[DEVICE], "cpu": losses["cpu"],
+        # (backbone, samples on the GPU, samples on the CPU cores)
+        for backbone, dev_n, cpu_n in (("small", 65536, 4096), ("resnet34", 16384, 512)):
+            cpu = train_bc_oh(f"train_{backbone}_cpu", backbone, "cpu", cpu_n)
+            train[f"{backbone}_cpu"] = cpu
+            if DEVICE == "cpu":  # a rehearsal: the CPU run stands for both
+                same = cpu
+            else:
+                train[f"{backbone}_{DEVICE}"] = train_bc_oh(f"train_{backbone}_{DEVICE}", backbone,
+                                                           DEVICE, dev_n)
+                same = train_bc_oh(f"agree_{backbone}_{DEVICE}", backbone, DEVICE, cpu_n)
+            if cpu and same:
+                rel = abs(same["train_loss"] - cpu["train_loss"]) / abs(cpu["train_loss"])
+                train[f"{backbone}_agreement"] = {"samples": cpu_n, DEVICE: same["train_loss"],
+                                                  "cpu": cpu["train_loss"],
                                                   "relative_difference": rel, "tolerance": 0.01,
                                                   "within": rel <= 0.01}
         report["train"] = train

@@ -86,13 +86,18 @@ TEST(Device, Bf16IsForCudaAndTheRecordNamesEverything) {
   }
 }
 
-// A tiny bc-oh run's record says where and how it trained.
-TEST(Device, RunRecordNamesDevicePrecisionAndLibtorch) {
-  TempDir dir("cd-device");
+// A tiny bc-oh run trained with train.device = "auto", on hand-made episodes in dir/data.
+std::string train_on_auto(const TempDir& dir) {
   test::write_fake_folder(dir / "data", 3, {.frames = 30});
   Settings s = test::tiny_family_settings();
   s.train.device = "auto";
-  const std::string run = test::train_tiny_run(dir, "bc-oh", "run", s);
+  return test::train_tiny_run(dir, "bc-oh", "run", s);
+}
+
+// A tiny bc-oh run's record says where and how it trained.
+TEST(Device, RunRecordNamesDevicePrecisionAndLibtorch) {
+  TempDir dir("cd-device");
+  const std::string run = train_on_auto(dir);
   std::ifstream in(run + "/checkpoint.json");
   const nlohmann::json ck = nlohmann::json::parse(in);
   const std::string expected = cuda_usable() ? "cuda" : "cpu";
@@ -111,10 +116,7 @@ TEST(Device, RunRecordNamesDevicePrecisionAndLibtorch) {
 // CUDA, with the same actions to float tolerance.
 TEST(Device, CheckpointLoadsOnEitherDevice) {
   TempDir dir("cd-device-load");
-  test::write_fake_folder(dir / "data", 3, {.frames = 30});
-  Settings s = test::tiny_family_settings();
-  s.train.device = "auto";
-  const std::string run = test::train_tiny_run(dir, "bc-oh", "run", s);
+  const std::string run = train_on_auto(dir);
   const EpisodeSet set = load_episode_set(dir / "data");
   std::vector<std::vector<uint8_t>> frames(3, std::vector<uint8_t>(set.frame_values()));
   std::vector<const uint8_t*> ptrs;
