@@ -33,6 +33,7 @@ void visit_settings(S& st, V&& v) {
   v.number("world", "ped_margin", st.world.ped_margin, 0, 5);
   v.number("world", "ped_lookahead_s", st.world.ped_lookahead_s, 0, 10);
   v.number("world", "ped_ahead_m", st.world.ped_ahead_m, 0, 100);
+  v.number("world", "ped_standing_margin", st.world.ped_standing_margin, 0, 5);
   v.number("world", "yield_time", st.world.yield_time, 0, 30);
   auto density = [&](const char* table, auto& d) {
     v.number(table, "cars_per_km", d.cars_per_km, 0, 200);

@@ -7,6 +7,10 @@
 
 namespace cd {
 
+namespace {
+constexpr double kStandingSpeed = 0.1;  // m/s: a pedestrian slower than this stands
+}  // namespace
+
 int tl_code(char state) {
   switch (state) {
     case 'r': case 'R': case 'u': case 's': return kTlRed;
@@ -85,11 +89,14 @@ TruthStep compute_ground_truth(const TruthInputs& in) {
       test(ahead);
       // The corridor straight ahead of the ego's own body, wherever the path runs: as far as
       // it drives in ped_lookahead_s, plus 1 m, at most ped_ahead_m.
+      // A standing pedestrian off the path is in it only close to the body's side: one
+      // waiting at the kerb for the ego to pass would otherwise hold it for good.
       const double corridor = std::min(ws.ped_ahead_m, 1.0 + in.ego_speed * ws.ped_lookahead_s);
+      const double side = a.speed < kStandingSpeed ? half_body + ws.ped_standing_margin : hw;
       for (Vec2 p : {a.box.center, ahead}) {
         const Vec2 e = to_ego_frame(in.ego_pose, p);
         const double front = e.x - in.ego_length / 2;
-        if (front >= -in.ego_length && front <= corridor && std::abs(e.y) <= hw)
+        if (front >= -in.ego_length && front <= corridor && std::abs(e.y) <= side)
           s_min = std::min(s_min, std::max(0.0, front));
       }
     } else {

@@ -32,6 +32,11 @@ struct WorldSettings {
   // path (a free ego's body leaves the path in turns: a pedestrian in front of it must not drop
   // out of the path test)
   double ped_ahead_m = 8.0;
+  // A pedestrian standing still (under 0.1 m/s) off the route path is in that corridor only
+  // within this much of the body's side: one waiting at the kerb beside a turn stands there
+  // until the ego has passed (SUMO's walkers yield at unprioritised crossings), so the
+  // ped_margin band would hold both for good (town-b-regular task 13 trial 2, ped31)
+  double ped_standing_margin = 0.3;
   double yield_time = 5.0;      // s, priority traffic closer than this in time is waited for
 };
 

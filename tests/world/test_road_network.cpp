@@ -316,6 +316,34 @@ TEST(GroundTruth, PedestrianAheadOfTheBodyOffThePathIsInTheWay) {
   EXPECT_FALSE(truth(Pose2{{50, 1.2}, 0}, 5.0).ped_on_path);
 }
 
+// A pedestrian standing at the kerb beside a turn waits for the ego to pass (SUMO's walkers
+// yield at unprioritised crossings). Straight ahead of the body but off the path, it is in the
+// ego's way only within ped_standing_margin (0.3 m) of the body's side, not within ped_margin
+// (0.8 m): otherwise each waits for the other (town-b-regular task 13 trial 2, ped31). Walking,
+// it keeps the wider band.
+TEST(GroundTruth, StandingPedestrianBesideTheBodyOffThePathWaitsForTheEgo) {
+  const RoadNetwork net = straight_network();
+  const LanePlan plan = net.lane_plan(kRoute);
+  WorldSettings ws;
+  Junction j;
+  const RoutePath path = trace_route_path(net, kRoute, plan, "A_0", 52.25, 80);
+  const Pose2 ego{{50, 1.2}, 0};  // body 1.2 m left of the centre line, front at 52.25
+  auto on = [&](Vec2 at, double speed) {
+    const Actor ped{"ped", Box{at, 0, 0.5, 0.5}, speed, true};
+    return truth_of(net, path, {ped}, 5.0, ws, j, ego).truth.ped_on_path;
+  };
+  // 2.75 m ahead of the front, 1.5 m beside the body's axis (0.6 m from its side), 2.7 m from
+  // the centre line (the path test reaches 1.7 m): standing, it is clear (0.9 + 0.3 = 1.2 m);
+  // walking along the road at 1 m/s (still 1.5 m beside the axis 1.5 s later), it is not.
+  EXPECT_FALSE(on({55, 2.7}, 0.0));
+  EXPECT_TRUE(on({55, 2.7}, 1.0));
+  // 1.1 m beside the axis (0.2 m from the side): in the way even standing.
+  EXPECT_TRUE(on({55, 2.3}, 0.0));
+  // The band is the setting: at 0.7 m, the standing pedestrian 1.5 m beside the axis is in it.
+  ws.ped_standing_margin = 0.7;
+  EXPECT_TRUE(on({55, 2.7}, 0.0));
+}
+
 TEST(CauseSchema, RecordedSeriesInFileOrder) {
   const auto& schema = cause_schema();
   std::vector<std::string> names;
