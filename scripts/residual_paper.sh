@@ -31,6 +31,8 @@
 #   WORKERS evaluation workers             (default: 2)
 #   CONFIG  the experiment config          (default: configs/residual_paper.toml)
 #   METHODS the methods of train, table7-9, stopgo and probe (default: all seven)
+#   ABLATION_LABELS the runs of train-ablations (default: all four; table11 needs the two
+#           two-stream ones, branches the residual-b2 and -b4 ones)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
@@ -79,13 +81,18 @@ train_all() {
   done
 }
 
+ABLATION_LABELS=${ABLATION_LABELS:-"two-stream-bc-oh two-stream-keyframe residual-b2 residual-b4"}
+
 train_ablations() {
+  local label
+  for label in $ABLATION_LABELS; do ablation_config "$label" >/dev/null; done  # names checked first
   for s in $SEEDS; do
     local T=$OUT/train/seed$s
     for entry in "${ABLATIONS[@]}"; do
       IFS='|' read -r label method _ <<<"$entry"
-      "$CD" train --config "$(ablation_config "$label")" --method "$method" --data "$DATA" \
-        --seed "$s" --out "$T/$label"
+      [[ " $ABLATION_LABELS " == *" $label "* ]] || continue
+      kept_train "$T/$label" --config "$(ablation_config "$label")" --method "$method" \
+        --data "$DATA" --seed "$s"
     done
   done
 }
@@ -141,8 +148,8 @@ run_step() {
     probe) probe_all ;;
     families)
       for s in $SEEDS; do
-        "$CD" train --config configs/cim_paper.toml --method cim --data "$DATA" --seed "$s" \
-          --out "$OUT/train/seed$s/cim"
+        kept_train "$OUT/train/seed$s/cim" --config configs/cim_paper.toml --method cim \
+          --data "$DATA" --seed "$s"
       done
       eval_agents families failure clean "$A $B" bc-oh keyframe residual cim
       ;;
