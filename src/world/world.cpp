@@ -51,6 +51,28 @@ bool lane_changes_fit(const RoadNetwork& net, const std::vector<std::string>& ro
   return true;
 }
 
+// Does the route turn around from one edge to the next (only through U-turn links, SUMO's
+// direction t or T)? Networks imported from OSM have such links at dead ends and junctions;
+// the built-in towns are built without them.
+bool turns_around(const RoadNetwork& net, const std::vector<std::string>& route) {
+  for (size_t k = 0; k + 1 < route.size(); ++k) {
+    bool turn = false, other = false;
+    auto lanes = net.edge_lanes.find(route[k]);
+    if (lanes == net.edge_lanes.end()) continue;
+    for (const std::string& lane : lanes->second) {
+      auto out = net.links.find(lane);
+      if (out == net.links.end()) continue;
+      for (const Link& l : out->second) {
+        const LaneGeom* to = net.map.find(l.to_lane);
+        if (!to || to->edge != route[k + 1]) continue;
+        (l.direction == 't' || l.direction == 'T' ? turn : other) = true;
+      }
+    }
+    if (turn && !other) return true;
+  }
+  return false;
+}
+
 bool contains(const std::vector<std::string>& v, const std::string& s) {
   return std::find(v.begin(), v.end(), s) != v.end();
 }
@@ -263,6 +285,9 @@ Task World::sample_task(uint64_t seed, double min_len, double max_len) {
     if (from == to) continue;
     libsumo::TraCIStage r = libsumo::Simulation::findRoute(from, to);
     if (r.edges.size() < 2) continue;
+    // No U-turns: a free ego's turning circle is too wide for them, and a route-mode ego would
+    // be carried round one that no learner sees in town-a's data.
+    if (turns_around(*net_, r.edges)) continue;
     double from_len = net_->rightmost_lane(from).length, to_len = net_->rightmost_lane(to).length;
     const double start_pos = std::min(from_len * 0.3, std::max(0.0, from_len - 10.0));
     int start_lane = -1;
