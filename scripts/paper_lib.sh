@@ -106,6 +106,15 @@ kept_report() {
   keep_file "$OUT/$table.csv"
 }
 
+# mode_config MODE: a config holding only `[ego] lateral = MODE` (route or free), as
+# $OUT/configs/expert-MODE.toml; the quickstart settings otherwise (the expert's runs).
+mode_config() {  # MODE -> a config
+  local file=$OUT/configs/expert-$1.toml
+  mkdir -p "$OUT/configs"
+  printf '[ego]\nlateral = "%s"\n' "$1" > "$file.tmp" && mv "$file.tmp" "$file"
+  echo "$file"
+}
+
 # The suite file (or built-in name) of a test suite at $TASKS tasks.
 suite_of() {
   local name=$1

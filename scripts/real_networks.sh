@@ -44,10 +44,9 @@ for name in $NETS; do  # every name and file checked before anything runs
 done
 
 dirs=()
+mkdir -p "$KEEP/suites"
 for mode in route free; do
-  config=$OUT/configs/expert-$mode.toml
-  mkdir -p "$OUT/configs" "$KEEP/suites"
-  printf '[ego]\nlateral = "%s"\n' "$mode" > "$config.tmp" && mv "$config.tmp" "$config"
+  config=$(mode_config "$mode")
   for name in $NETS; do
     suite=$KEEP/suites/real-$name-$mode-$TASKS.json
     [[ -f $suite ]] || "$CD" suite --config "$config" --name "real-$name" --town "$(net_file "$name")" \

@@ -63,14 +63,6 @@ free_config() {
   echo "$file"
 }
 
-# The expert and the world in both modes use the quickstart settings otherwise.
-mode_config() {  # MODE -> a config
-  local file=$OUT/configs/expert-$1.toml
-  mkdir -p "$OUT/configs"
-  printf '[ego]\nlateral = "%s"\n' "$1" > "$file.tmp" && mv "$file.tmp" "$file"
-  echo "$file"
-}
-
 # drawn_suite MODE TRAFFIC: a town-c suite drawn by a MODE ego (seed 4242), kept in $KEEP/suites.
 drawn_suite() {
   local file=$KEEP/suites/town-c-$2-$1.json

@@ -285,21 +285,24 @@ TEST(GroundTruth, PedestriansYieldingAndCommand) {
   EXPECT_TRUE(truth_of(net, near, {aside}, 0.0, ws, j).truth.ped_on_path);
 }
 
+// The truth of the pedestrian-corridor tests: the route path of straight_network from the ego's
+// front at 52.25 m on A_0, one actor, no light or yield.
+GroundTruth truth_beside_path(const Actor& actor, Pose2 ego, double speed, const WorldSettings& ws) {
+  const RoadNetwork net = straight_network();
+  const RoutePath path = trace_route_path(net, kRoute, net.lane_plan(kRoute), "A_0", 52.25, 80);
+  Junction j;
+  return truth_of(net, path, {actor}, speed, ws, j, ego).truth;
+}
+
 // A free ego's body leaves its path in turns: a pedestrian straight ahead of the body is in its
 // way even where it is beside the path (the expert drove into one on town-b-regular task 10,
 // trial 1, when it dropped out of the path test for a step).
 TEST(GroundTruth, PedestrianAheadOfTheBodyOffThePathIsInTheWay) {
-  const RoadNetwork net = straight_network();
-  const LanePlan plan = net.lane_plan(kRoute);
   WorldSettings ws;
-  Junction j;
-  const RoutePath path = trace_route_path(net, kRoute, plan, "A_0", 52.25, 80);
   // A pedestrian 2.2 m left of the lane centre, 2.75 m ahead of the front: off the path (the
   // path test reaches 0.9 + 0.8 = 1.7 m beside the centre line).
   const Actor ped{"ped", Box{{55, 2.2}, 0, 0.5, 0.5}, 0.0, true};
-  auto truth = [&](Pose2 ego, double speed) {
-    return truth_of(net, path, {ped}, speed, ws, j, ego).truth;
-  };
+  auto truth = [&](Pose2 ego, double speed) { return truth_beside_path(ped, ego, speed, ws); };
   EXPECT_FALSE(truth(Pose2{{50, 0}, 0}, 5.0).ped_on_path);
   // The ego's body 1.2 m left of the centre line (centre at x 50, front at 52.25) at 5 m/s (its
   // corridor: min(8, 1 + 5 * 1.5) = 8 m): the pedestrian is 1.0 m beside its axis, 2.75 m ahead
@@ -322,15 +325,11 @@ TEST(GroundTruth, PedestrianAheadOfTheBodyOffThePathIsInTheWay) {
 // (0.8 m): otherwise each waits for the other (town-b-regular task 13 trial 2, ped31). Walking,
 // it keeps the wider band.
 TEST(GroundTruth, StandingPedestrianBesideTheBodyOffThePathWaitsForTheEgo) {
-  const RoadNetwork net = straight_network();
-  const LanePlan plan = net.lane_plan(kRoute);
   WorldSettings ws;
-  Junction j;
-  const RoutePath path = trace_route_path(net, kRoute, plan, "A_0", 52.25, 80);
   const Pose2 ego{{50, 1.2}, 0};  // body 1.2 m left of the centre line, front at 52.25
   auto on = [&](Vec2 at, double speed) {
     const Actor ped{"ped", Box{at, 0, 0.5, 0.5}, speed, true};
-    return truth_of(net, path, {ped}, 5.0, ws, j, ego).truth.ped_on_path;
+    return truth_beside_path(ped, ego, 5.0, ws).ped_on_path;
   };
   // 2.75 m ahead of the front, 1.5 m beside the body's axis (0.6 m from its side), 2.7 m from
   // the centre line (the path test reaches 1.7 m): standing, it is clear (0.9 + 0.3 = 1.2 m);

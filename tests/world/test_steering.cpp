@@ -205,15 +205,23 @@ TEST(SteeringExpert, DrivesEveryBuiltInTown) {
     for (uint64_t seed : {1, 2}) expert_drives(town, seed);
 }
 
+// A random one-lane network that netgenerate draws with seed 17 (with U-turn links, or built
+// without them as the built-in towns are), written to `file`.
+void random_network(const std::string& file, bool turnarounds) {
+  std::vector<std::string> argv = {
+      "/usr/bin/netgenerate", "--rand", "--rand.iterations", "40", "--rand.min-distance", "70",
+      "--rand.max-distance", "140", "--rand.min-angle", "50", "--seed", "17",
+      "--default.lanenumber", "1", "--tls.guess", "-o", file};
+  if (!turnarounds) argv.insert(argv.end(), {"--no-turnarounds", "true"});
+  const test::CommandResult r = test::run_command(argv);
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+}
+
 TEST(SteeringExpert, DrivesARandomNetworkItHasNeverSeen) {
   CD_NEEDS_SUMO();
   test::TempDir dir("cdtest-steer-net");
   const std::string net = dir / "random.net.xml";
-  const test::CommandResult r = test::run_command(
-      {"/usr/bin/netgenerate", "--rand", "--rand.iterations", "40", "--rand.min-distance", "70",
-       "--rand.max-distance", "140", "--rand.min-angle", "50", "--seed", "17",
-       "--default.lanenumber", "1", "--tls.guess", "--no-turnarounds", "true", "-o", net});
-  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  ASSERT_NO_FATAL_FAILURE(random_network(net, false));
   for (uint64_t seed : {3, 4, 5}) expert_drives(net, seed);
 }
 
@@ -226,11 +234,7 @@ TEST(TaskSampling, NoRouteTurnsAround) {
   CD_NEEDS_SUMO();
   test::TempDir dir("cdtest-uturn");
   const std::string net = dir / "uturns.net.xml";
-  const test::CommandResult r = test::run_command(
-      {"/usr/bin/netgenerate", "--rand", "--rand.iterations", "40", "--rand.min-distance", "70",
-       "--rand.max-distance", "140", "--rand.min-angle", "50", "--seed", "17",
-       "--default.lanenumber", "1", "--tls.guess", "-o", net});
-  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  ASSERT_NO_FATAL_FAILURE(random_network(net, true));
   std::set<std::pair<std::string, std::string>> uturn, other;
   const std::string text = test::read_text(net);
   const std::regex conn(R"re(<connection from="([^":][^"]*)" to="([^"]+)"[^>]*dir="(.)")re");
