@@ -22,6 +22,18 @@ keep_file() {
   cp "$1" "$KEEP/$rel.tmp" && mv "$KEEP/$rel.tmp" "$KEEP/$rel"
 }
 
+# kept_json FILE CMD...: CMD's standard output as FILE (a JSON report), kept in $KEEP; a kept
+# FILE is not measured again, and FILE appears whole or not at all.
+kept_json() {
+  local file=$1; shift
+  [[ -f $KEEP/${file#"$OUT"/} ]] && return
+  if [[ ! -f $file ]]; then
+    mkdir -p "$(dirname "$file")"
+    "$@" > "$file.tmp" && mv "$file.tmp" "$file"
+  fi
+  keep_file "$file"
+}
+
 # restore_run DIR: copies the run kept for DIR back into DIR, unless DIR exists already. Its
 # weights come back from git history first (results/WEIGHTS.md).
 restore_run() {

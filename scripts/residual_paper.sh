@@ -12,6 +12,8 @@
 #   scripts/residual_paper.sh table11   # two-stream bc-oh / keyframe vs one-stream, town-a dense
 #   scripts/residual_paper.sh branches  # residual with 1, 2 and 4 memory branches, town-a dense
 #   scripts/residual_paper.sh probe     # copycat probe of every history method (JSON per run)
+#   scripts/residual_paper.sh diagnose  # what each run learned, situation by situation, on its
+#                                       # held-out episodes (JSON per run, diagnose.md)
 #   scripts/residual_paper.sh families  # seed 000's cim trained on the same data, next to
 #                                       # bc-oh, keyframe and residual (failure modes, A and B)
 #   scripts/residual_paper.sh all       # everything above in order
@@ -30,7 +32,7 @@
 #   TRIALS  trials per task                (default: 1)
 #   WORKERS evaluation workers             (default: 2)
 #   CONFIG  the experiment config          (default: configs/residual_paper.toml)
-#   METHODS the methods of train, table7-9, stopgo and probe (default: all seven)
+#   METHODS the methods of train, table7-9, stopgo, probe and diagnose (default: all seven)
 #   ABLATION_LABELS the runs of train-ablations (default: all four; table11 needs the two
 #           two-stream ones, branches the residual-b2 and -b4 ones)
 set -euo pipefail
@@ -101,14 +103,8 @@ probe_all() {
   for s in $SEEDS; do
     for m in $METHODS; do
       [[ $m == bc-so ]] && continue  # no history to probe
-      local f=$OUT/probe/seed$s/$m.json
-      [[ -f $KEEP/probe/seed$s/$m.json ]] && continue
-      if [[ ! -f $f ]]; then
-        mkdir -p "$(dirname "$f")"
-        "$CD" probe --checkpoint "$OUT/train/seed$s/$m" --data "$DATA" --max-frames 2000 --json \
-          > "$f.tmp" && mv "$f.tmp" "$f"
-      fi
-      keep_file "$f"
+      kept_json "$OUT/probe/seed$s/$m.json" "$CD" probe --checkpoint "$OUT/train/seed$s/$m" \
+        --data "$DATA" --max-frames 2000 --json
     done
   done
   python3 - "$KEEP/probe" "$SEEDS" > "$OUT/probe.md" <<'PY'
@@ -130,6 +126,27 @@ PY
   cat "$OUT/probe.md"
 }
 
+diagnose_all() {
+  for s in $SEEDS; do
+    for m in $METHODS; do
+      local run=$OUT/train/seed$s/$m
+      if [[ ! -f $KEEP/diagnose/seed$s/$m.json ]]; then
+        restore_run "$run"
+        [[ -f $run/best.pt ]] || {
+          echo "diagnose: $run has no best.pt (weights over 5 MB are not kept: train it first); skipped" >&2
+          continue
+        }
+      fi
+      kept_json "$OUT/diagnose/seed$s/$m.json" "$CD" diagnose --checkpoint "$run" --data "$DATA" \
+        --json
+    done
+  done
+  # shellcheck disable=SC2086
+  scripts/diagnose_table.py "$KEEP/diagnose" --seeds $SEEDS --methods $METHODS > "$OUT/diagnose.md"
+  keep_file "$OUT/diagnose.md"
+  cat "$OUT/diagnose.md"
+}
+
 A="town-a-regular town-a-dense"
 B="town-b-regular town-b-dense"
 run_step() {
@@ -146,6 +163,7 @@ run_step() {
     branches) eval_agents branches outcomes clean town-a-dense residual residual-b2=residual \
                 residual-b4=residual ;;
     probe) probe_all ;;
+    diagnose) diagnose_all ;;
     families)
       for s in $SEEDS; do
         kept_train "$OUT/train/seed$s/cim" --config configs/cim_paper.toml --method cim \
@@ -155,11 +173,11 @@ run_step() {
       ;;
     all)
       for step in train train-ablations table7 table8 table9 stopgo table10 table11 branches \
-        probe families; do
+        probe diagnose families; do
         run_step "$step"
       done
       ;;
   esac
 }
 
-run_steps "train train-ablations table7 table8 table9 stopgo table10 table11 branches probe families all" "$@"
+run_steps "train train-ablations table7 table8 table9 stopgo table10 table11 branches probe diagnose families all" "$@"
