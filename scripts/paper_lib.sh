@@ -29,7 +29,8 @@ kept_json() {
   [[ -f $KEEP/${file#"$OUT"/} ]] && return
   if [[ ! -f $file ]]; then
     mkdir -p "$(dirname "$file")"
-    "$@" > "$file.tmp" && mv "$file.tmp" "$file"
+    "$@" > "$file.tmp" || { rm -f "$file.tmp"; echo "error: no $file (its command failed)" >&2; return 1; }
+    mv "$file.tmp" "$file"
   fi
   keep_file "$file"
 }

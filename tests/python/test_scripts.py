@@ -1,7 +1,10 @@
 """The reproduction scripts' command line (scripts/*_paper.sh, run_steps in paper_lib.sh):
 several steps run in order, an unknown step is refused before any step runs; kept_train keeps a
-finished run and copies a kept one back without training; suite_of generates suites of any size;
-steering_summary.py condenses the kept csv files; config_variant.py sets keys of a config."""
+finished run and copies a kept one back without training; kept_json keeps a report and never
+measures a kept one again; suite_of generates suites of any size; steering_summary.py condenses
+the kept csv files; config_variant.py sets keys of a config; diagnose_table.py sums diagnose
+reports over seeds; turn_failures.py classifies a route's junction passages by their turn."""
+import importlib.util
 import json
 import os
 import subprocess
@@ -131,6 +134,139 @@ class KeptTrainTest(TempDirCase):
         self.assertEqual(sorted(os.listdir(out)), ["dim.json", "member_0.pt"])
         with open(os.path.join(out, "member_0.pt")) as f:
             self.assertEqual(f.read(), "weights")
+
+
+class KeptJsonTest(TempDirCase):
+    """paper_lib.sh's kept_json FILE CMD...: CMD's output as FILE, kept; a kept FILE is final."""
+
+    def kept_json(self, command):
+        script = ('source "%s/scripts/paper_lib.sh"\nkept_json "$OUT/probe/seed0/bc-oh.json" %s\n'
+                  % (SOURCE, command))
+        env = dict(os.environ, CD=os.path.abspath(BIN), OUT=os.path.join(self.dir, "out"),
+                   KEEP=os.path.join(self.dir, "keep"), CALLS=os.path.join(self.dir, "calls"))
+        return subprocess.run(["bash", "-c", script], env=env, capture_output=True, text=True,
+                              timeout=60)
+
+    def path(self, root):
+        return os.path.join(self.dir, root, "probe", "seed0", "bc-oh.json")
+
+    def test_the_output_is_written_and_kept(self):
+        r = self.kept_json("""bash -c 'echo run >> "$CALLS"; echo "{\\"a\\": 1}"'""")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        for root in ("out", "keep"):
+            with open(self.path(root)) as f:
+                self.assertEqual(json.load(f), {"a": 1})
+        self.assertEqual(sorted(os.listdir(os.path.dirname(self.path("keep")))), ["bc-oh.json"])
+
+    def test_a_kept_report_is_not_measured_again(self):
+        os.makedirs(os.path.dirname(self.path("keep")))
+        with open(self.path("keep"), "w") as f:
+            f.write('{"kept": 1}')
+        r = self.kept_json("""bash -c 'echo run >> "$CALLS"; echo "{}"'""")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertFalse(os.path.exists(os.path.join(self.dir, "calls")))
+        with open(self.path("keep")) as f:
+            self.assertEqual(f.read(), '{"kept": 1}')
+
+    def test_a_failed_command_leaves_no_report(self):
+        r = self.kept_json("""bash -c 'echo "{\\"half"; exit 3'""")
+        self.assertNotEqual(r.returncode, 0)
+        self.assertEqual(r.stderr.strip().splitlines(),
+                         ["error: no %s (its command failed)" % self.path("out")])
+        self.assertEqual(os.listdir(os.path.dirname(self.path("out"))), [])  # no .tmp left
+        self.assertFalse(os.path.exists(self.path("keep")))
+
+
+class DiagnoseTableTest(TempDirCase):
+    """scripts/diagnose_table.py against hand-computed means and sds over seeds."""
+
+    @staticmethod
+    def report(count, label, pred, r2):
+        comp = lambda l, p, q: {"label_mean": l, "label_sd": 0.1, "pred_mean": p, "pred_sd": 0.1,
+                                "mae": abs(l - p), "r2": q}
+        return {"components": ["throttle", "brake"], "situations": {
+            "cruising": {"count": count, "throttle": comp(label, pred, r2),
+                         "brake": comp(0.0, 0.0, None)},
+            "starting": {"count": 10, "throttle": comp(1.0, pred, None),
+                         "brake": comp(0.0, 0.0, None)}}}
+
+    def table(self, *methods):
+        return subprocess.run([os.path.join(SOURCE, "scripts", "diagnose_table.py"), self.dir,
+                               "--seeds", "0", "1", "--methods", *methods],
+                              capture_output=True, text=True, timeout=60)
+
+    def test_cells_are_mean_and_sd_over_seeds(self):
+        for seed, (count, pred, r2) in enumerate([(100, 0.30, -2.0), (200, 0.50, -4.0)]):
+            os.makedirs(os.path.join(self.dir, "seed%d" % seed))
+            with open(os.path.join(self.dir, "seed%d" % seed, "bc-so.json"), "w") as f:
+                json.dump(self.report(count, 0.12, pred, r2), f)
+        r = self.table("bc-so", "bc-oh")  # bc-oh has no report: skipped
+        self.assertEqual(r.returncode, 0, r.stderr)
+        rows = {line.split("|")[1].strip(): [c.strip() for c in line.split("|")[2:-1]]
+                for line in r.stdout.splitlines() if line.startswith("| ") and "---" not in line}
+        # frames 150 +- 70.7; throttle label 0.12 +- 0; prediction 0.40 +- 0.1414; R2 -3 +- 1.414
+        self.assertEqual(rows["cruising"], ["150 ± 71", "0.12 ± 0.00", "0.40 ± 0.14",
+                                            "-3.00 ± 1.41", "0.00 ± 0.00", "0.00 ± 0.00", "-"])
+        self.assertEqual(rows["starting"][0:4], ["10 ± 0", "1.00 ± 0.00", "0.40 ± 0.14", "-"])
+        self.assertEqual(list(rows)[1:], ["starting", "cruising"])  # the situations' fixed order
+        self.assertNotIn("bc-oh", r.stdout)
+
+    def test_no_report_at_all_is_one_line_and_exit_1(self):
+        r = self.table("bc-so")
+        self.assertEqual(r.returncode, 1)
+        self.assertEqual(r.stderr.strip().splitlines(),
+                         ["error: no diagnose report under %s for bc-so" % self.dir])
+
+
+@unittest.skipUnless(os.path.isdir("/usr/share/sumo/tools/sumolib"), "needs sumo-tools' sumolib")
+class TurnFailuresTest(unittest.TestCase):
+    """scripts/turn_failures.py's turn classification and junction positions on hand-made edges
+    (stand-ins with sumolib's methods), against hand computation."""
+
+    @classmethod
+    def setUpClass(cls):
+        spec = importlib.util.spec_from_file_location(
+            "turn_failures", os.path.join(SOURCE, "scripts", "turn_failures.py"))
+        cls.tf = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(cls.tf)
+
+    class Edge:
+        def __init__(self, shape, length, via=None):
+            self.shape, self.length, self.via = shape, length, via or {}
+
+        def getShape(self):
+            return self.shape
+
+        def getLength(self):
+            return self.length
+
+        def getOutgoing(self):
+            conn = lambda lane: type("C", (), {"getViaLaneID": lambda self: lane})()
+            return {e: [conn(lane)] for e, lane in self.via.items()}
+
+    def test_turns_are_signed_and_rounded(self):
+        east = self.Edge([(0, 0), (100, 0)], 100)
+        north = self.Edge([(105, 5), (105, 100)], 95)
+        south = self.Edge([(105, -5), (105, -100)], 95)
+        # 120 degrees to the right of east: heading -120 degrees.
+        sharp = self.Edge([(104, -2), (104 - 50, -2 - 50 * 3 ** 0.5)], 100)
+        self.assertEqual(self.tf.turn_angle(east, north), 90)
+        self.assertEqual(self.tf.turn_angle(east, south), -90)
+        self.assertEqual(self.tf.turn_angle(east, sharp), -120)
+        self.assertEqual(self.tf.turn_angle(east, self.Edge([(106, 1), (200, 3)], 94)), 0)
+
+    def test_junctions_lie_where_the_route_reaches_them(self):
+        b = self.Edge([(110, 0), (110, 80)], 80)
+        c = self.Edge([(110, 90), (0, 90)], 110)
+        a = self.Edge([(0, 0), (100, 0)], 100, via={b: ":j0_0_0"})
+        b.via = {c: ":j1_0_0"}
+        lanes = {":j0_0_0": 12.0, ":j1_0_0": 9.0}
+        net = type("Net", (), {
+            "getEdge": lambda self, e: {"a": a, "b": b, "c": c}[e],
+            "getLane": lambda self, lane: type("L", (), {"getLength": lambda s: lanes[lane]})()})()
+        got = self.tf.junctions(net, {"route": ["a", "b", "c"], "start_pos": 30.0})
+        # a from 30 m: 70 m to its end, 12 m through j0, 80 m of b, 9 m through j1.
+        self.assertEqual(got, [(70.0, 82.0, 90), (162.0, 171.0, 90)])
 
 
 @needs_sumo
