@@ -15,18 +15,21 @@ shopt -s inherit_errexit  # a failing command in $(...) fails the script, not on
 [[ -x $CD ]] || { echo "error: $CD not found; run 'make build' first (or set CD)" >&2; exit 1; }
 KEEP=${KEEP:-results/$(basename "$OUT")}
 
+# kept_of PATH: where $KEEP keeps $OUT/REL (PATH): $KEEP/REL.
+kept_of() { echo "$KEEP/${1#"$OUT"/}"; }
+
 # keep_file PATH: copies $OUT/REL (PATH) to $KEEP/REL, atomically.
 keep_file() {
-  local rel=${1#"$OUT"/}
-  mkdir -p "$(dirname "$KEEP/$rel")"
-  cp "$1" "$KEEP/$rel.tmp" && mv "$KEEP/$rel.tmp" "$KEEP/$rel"
+  local kept; kept=$(kept_of "$1")
+  mkdir -p "$(dirname "$kept")"
+  cp "$1" "$kept.tmp" && mv "$kept.tmp" "$kept"
 }
 
 # kept_json FILE CMD...: CMD's standard output as FILE (a JSON report), kept in $KEEP; a kept
 # FILE is not measured again, and FILE appears whole or not at all.
 kept_json() {
   local file=$1; shift
-  [[ -f $KEEP/${file#"$OUT"/} ]] && return
+  [[ -f $(kept_of "$file") ]] && return
   if [[ ! -f $file ]]; then
     mkdir -p "$(dirname "$file")"
     "$@" > "$file.tmp" || { rm -f "$file.tmp"; echo "error: no $file (its command failed)" >&2; return 1; }
@@ -38,7 +41,7 @@ kept_json() {
 # restore_run DIR: copies the run kept for DIR back into DIR, unless DIR exists already. Its
 # weights come back from git history first (results/WEIGHTS.md).
 restore_run() {
-  local dir=$1 kept=$KEEP/${1#"$OUT"/}
+  local dir=$1 kept; kept=$(kept_of "$1")
   [[ -d $kept ]] && { "$(dirname "${BASH_SOURCE[0]}")/restore_weights.sh" "$kept" >/dev/null 2>&1 || true; }
   if [[ -d $kept && ! -d $dir ]]; then
     mkdir -p "$dir"
@@ -59,7 +62,7 @@ restore_run() {
 # appears whole or not at all (written as KEPT.tmp, then renamed).
 kept_train() {
   local dir=$1; shift
-  local kept=$KEEP/${dir#"$OUT"/} file
+  local kept file; kept=$(kept_of "$dir")
   if [[ -d $kept ]]; then
     restore_run "$dir"
     return 0
@@ -100,7 +103,7 @@ kept_train() {
 # ended in an infrastructure failure, which a rerun would retry).
 kept_eval() {
   local dir=$1; shift
-  KEPT=$KEEP/${dir#"$OUT"/}
+  KEPT=$(kept_of "$dir")
   [[ -f $KEPT/results.json ]] && return
   "$CD" eval "$@" --out "$dir"
   if grep -q '"infrastructure_failure"' "$dir/results.json"; then

@@ -129,16 +129,15 @@ PY
 diagnose_all() {
   for s in $SEEDS; do
     for m in $METHODS; do
-      local run=$OUT/train/seed$s/$m
-      if [[ ! -f $KEEP/diagnose/seed$s/$m.json ]]; then
+      local run=$OUT/train/seed$s/$m report=$OUT/diagnose/seed$s/$m.json
+      if [[ ! -f $(kept_of "$report") ]]; then
         restore_run "$run"
         [[ -f $run/best.pt ]] || {
           echo "diagnose: $run has no best.pt (weights over 5 MB are not kept: train it first); skipped" >&2
           continue
         }
       fi
-      kept_json "$OUT/diagnose/seed$s/$m.json" "$CD" diagnose --checkpoint "$run" --data "$DATA" \
-        --json
+      kept_json "$report" "$CD" diagnose --checkpoint "$run" --data "$DATA" --json
     done
   done
   # shellcheck disable=SC2086
