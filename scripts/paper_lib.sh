@@ -38,15 +38,18 @@ kept_json() {
   keep_file "$file"
 }
 
-# restore_run DIR: copies the run kept for DIR back into DIR, unless DIR exists already. Its
-# weights come back from git history first (results/WEIGHTS.md).
+# restore_run DIR: copies the run kept for DIR back into DIR (whole or not at all), unless DIR
+# exists already. Its weights come back from git history first (scripts/restore_weights.sh,
+# results/WEIGHTS.md); when they cannot (a shallow clone, a tarball), it fails with restore's
+# one line on stderr rather than reuse a run without its weights.
 restore_run() {
   local dir=$1 kept; kept=$(kept_of "$1")
-  [[ -d $kept ]] && { "$(dirname "${BASH_SOURCE[0]}")/restore_weights.sh" "$kept" >/dev/null 2>&1 || true; }
-  if [[ -d $kept && ! -d $dir ]]; then
-    mkdir -p "$dir"
-    cp "$kept"/* "$dir"/
-  fi
+  [[ -d $kept && ! -d $dir ]] || return 0
+  "$(dirname "${BASH_SOURCE[0]}")/restore_weights.sh" "$kept" >/dev/null || return
+  mkdir -p "$(dirname "$dir")"
+  rm -rf "$dir.tmp"
+  mkdir "$dir.tmp"
+  cp "$kept"/* "$dir.tmp"/ && mv "$dir.tmp" "$dir"
 }
 
 # kept_train DIR ARGS...: `causaldrive train ARGS --out DIR`, the finished run kept in $KEEP
@@ -64,7 +67,7 @@ kept_train() {
   local dir=$1; shift
   local kept file; kept=$(kept_of "$dir")
   if [[ -d $kept ]]; then
-    restore_run "$dir"
+    restore_run "$dir" || return  # no weights: the step stops (not trained again either)
     return 0
   fi
   "$CD" train "$@" --out "$dir"
@@ -94,7 +97,7 @@ kept_train() {
   cp "${files[@]}" "$kept.tmp/"
   mv "$kept.tmp" "$kept"
   if compgen -G "$kept/*.pt" >/dev/null; then
-    echo "$kept: kept; git ignores its weights: scripts/keep_weights.sh $kept keeps them in history" >&2
+    echo "$kept: kept; git ignores its weights: scripts/keep_weights.sh $kept keeps them in history (results/WEIGHTS.md)" >&2
   fi
 }
 
@@ -175,9 +178,9 @@ eval_agents() {
       fi
       for s in $SEEDS; do
         local path=()
-        restore_run "$OUT/train/seed$s/$label"
+        restore_run "$OUT/train/seed$s/$label" || return
         if [[ $kind == cim* && -n ${CIM_PATH:-} ]]; then
-          restore_run "$OUT/train/seed$s/$CIM_PATH"
+          restore_run "$OUT/train/seed$s/$CIM_PATH" || return
           path=(--cim-path "$OUT/train/seed$s/$CIM_PATH")
         fi
         kept_eval "$OUT/eval/$label/seed$s/$name$tag" --config "$CONFIG" --agent "$kind" \

@@ -131,7 +131,7 @@ diagnose_all() {
     for m in $METHODS; do
       local run=$OUT/train/seed$s/$m report=$OUT/diagnose/seed$s/$m.json
       if [[ ! -f $(kept_of "$report") ]]; then
-        restore_run "$run"
+        restore_run "$run" || return
         [[ -f $run/best.pt ]] || {
           echo "diagnose: $run has no best.pt (weights over 5 MB are not kept: train it first); skipped" >&2
           continue
