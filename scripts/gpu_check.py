@@ -47,6 +47,19 @@ def run(name, cmd, env=None, timeout=None, check=True):
     return rc, out
 
 
+def agreement(backbone, samples, cpu_loss, device_loss, tolerance=0.01):
+    """The first epoch's loss on the device against the CPU's; a difference over `tolerance`
+    (relative) is an error of the check, so that its exit code fails."""
+    rel = abs(device_loss - cpu_loss) / abs(cpu_loss) if cpu_loss else float("inf")
+    within = rel <= tolerance
+    if not within:
+        report["errors"].append(f"{backbone}: the {DEVICE} loss {device_loss:.6g} differs from "
+                                f"the CPU's {cpu_loss:.6g} by {100 * rel:.2f}% "
+                                f"(tolerance {100 * tolerance:.0f}%)")
+    return {"samples": samples, DEVICE: device_loss, "cpu": cpu_loss,
+            "relative_difference": rel, "tolerance": tolerance, "within": within}
+
+
 def finish(code=0):
     line = json.dumps(report, sort_keys=True)
     with open(os.path.join(OUT, "gpu_check.json"), "w") as f:
@@ -196,11 +209,8 @@ def main():
                                                            DEVICE, dev_n)
                 same = train_bc_oh(f"agree_{backbone}_{DEVICE}", backbone, DEVICE, cpu_n)
             if cpu and same:
-                rel = abs(same["train_loss"] - cpu["train_loss"]) / abs(cpu["train_loss"])
-                train[f"{backbone}_agreement"] = {"samples": cpu_n, DEVICE: same["train_loss"],
-                                                  "cpu": cpu["train_loss"],
-                                                  "relative_difference": rel, "tolerance": 0.01,
-                                                  "within": rel <= 0.01}
+                train[f"{backbone}_agreement"] = agreement(backbone, cpu_n, cpu["train_loss"],
+                                                           same["train_loss"])
         report["train"] = train
     finish(0 if not report["errors"] else 1)
 

@@ -33,7 +33,8 @@ def clean(x, root):
 def main(root):
     for folder, _, files in sorted(os.walk(root)):
         for name in sorted(files):
-            if name in ("log", "cfg.toml") or name.endswith(".digest"):
+            # causaldrive.lock names its holder and time: the run folder's lock, not an output.
+            if name in ("log", "cfg.toml", "causaldrive.lock") or name.endswith(".digest"):
                 continue
             path = os.path.join(folder, name)
             if name == "optimizer.pt":

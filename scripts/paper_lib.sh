@@ -55,7 +55,7 @@ restore_run() {
 # kept_train DIR ARGS...: `causaldrive train ARGS --out DIR`, the finished run kept in $KEEP
 # (weights and records; not cim's Granger series series.csv, 40 MB, which only `causaldrive
 # granger` reads, nor the policy family's resume state, model.pt and optimizer.pt: agents load
-# best.pt). A run holding a file over KEEP_MAX_MB (default 5) is not kept, since git holds no
+# best.pt, nor the folder's lock file). A run holding a file over KEEP_MAX_MB (default 5) is not kept, since git holds no
 # file that large: it stays in DIR and a fresh checkout trains it again (its checkpoint.json and
 # metrics.jsonl are kept in KEPT.record, as a record only). A kept run is used as
 # it is, like a kept evaluation: it is copied back into DIR and not trained again, so a fresh
@@ -74,7 +74,7 @@ kept_train() {
   local files=() max_mb=${KEEP_MAX_MB:-5} over=""
   for file in "$dir"/*; do
     [[ -f $file ]] || continue
-    case $(basename "$file") in series.csv | model.pt | optimizer.pt) continue ;; esac
+    case $(basename "$file") in series.csv | model.pt | optimizer.pt | causaldrive.lock) continue ;; esac
     if (( $(stat -c %s "$file") > max_mb * 1000000 )); then
       over+=" $(basename "$file")"
       continue

@@ -106,20 +106,17 @@ std::string bar_charts(const ReportTable& table, const std::vector<Series>& seri
     const double width =
         std::max(left + group_w * static_cast<double>(labels.size()) + 10, left + legend_w);
     const double height = top_pad + plot_h + 56;
-    char buf[512];
     o << "<figure class=\"chart\"><figcaption>" << escape(suite) << "</figcaption>\n";
-    std::snprintf(buf, sizeof buf,
+    o << format(
                   "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%.0f\" height=\"%.0f\" "
                   "role=\"img\" aria-label=\"%s\">\n",
                   width, height, escape(suite).c_str());
-    o << buf;
     for (int tick = 0; tick <= 4; ++tick) {
       const double v = top * tick / 4.0, y = top_pad + plot_h - plot_h * tick / 4.0;
-      std::snprintf(buf, sizeof buf,
+      o << format(
                     "<line x1=\"%.0f\" x2=\"%.0f\" y1=\"%.1f\" y2=\"%.1f\" class=\"grid\"/>"
                     "<text x=\"%.0f\" y=\"%.1f\" class=\"tick\">%.0f%s</text>\n",
                     left, width - 10, y, y, left - 4, y + 4, v, unit.c_str());
-      o << buf;
     }
     for (size_t g = 0; g < labels.size(); ++g) {
       const double x0 = left + gap / 2 + group_w * static_cast<double>(g);
@@ -128,7 +125,7 @@ std::string bar_charts(const ReportTable& table, const std::vector<Series>& seri
         if (!st || st->n == 0) continue;
         const double v = st->mean * scale, sd = st->std.value_or(0) * std::abs(scale);
         const double h = plot_h * std::max(0.0, v) / top, x = x0 + bar * static_cast<double>(k);
-        std::snprintf(buf, sizeof buf,
+        o << format(
                       "<rect x=\"%.1f\" y=\"%.1f\" width=\"%.0f\" height=\"%.1f\" fill=\"%s\" "
                       "data-series=\"%s\" data-label=\"%s\" data-value=\"%.4g\"><title>%s, %s: "
                       "%.1f%s (sd %.1f, n %d)</title></rect>\n",
@@ -136,30 +133,26 @@ std::string bar_charts(const ReportTable& table, const std::vector<Series>& seri
                       series[k].key.c_str(), escape(labels[g]).c_str(), v,
                       escape(labels[g]).c_str(), series[k].name.c_str(), v, unit.c_str(), sd,
                       st->n);
-        o << buf;
         if (st->std) {
           const double y1 = top_pad + plot_h - plot_h * std::max(0.0, v - sd) / top;
           const double y2 = top_pad + plot_h - plot_h * std::min(top, v + sd) / top;
           const double cx = x + (bar - 2) / 2;
-          std::snprintf(buf, sizeof buf,
+          o << format(
                         "<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" class=\"sd\"/>\n",
                         cx, cx, y1, y2);
-          o << buf;
         }
       }
-      std::snprintf(buf, sizeof buf,
+      o << format(
                     "<text x=\"%.1f\" y=\"%.0f\" class=\"group\">%s</text>\n",
                     x0 + bar * static_cast<double>(series.size()) / 2, top_pad + plot_h + 16,
                     escape(labels[g]).c_str());
-      o << buf;
     }
     double lx = left;
     for (const Series& s : series) {
-      std::snprintf(buf, sizeof buf,
+      o << format(
                     "<rect x=\"%.0f\" y=\"%.0f\" width=\"10\" height=\"10\" fill=\"%s\"/>"
                     "<text x=\"%.0f\" y=\"%.0f\" class=\"legend\">%s</text>\n",
                     lx, height - 18, s.colour.c_str(), lx + 14, height - 9, s.name.c_str());
-      o << buf;
       lx += 14 + 8 * static_cast<double>(s.name.size()) + 16;
     }
     o << "</svg></figure>\n";

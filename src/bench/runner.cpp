@@ -11,7 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "train/device.hpp"
+#include "device/device.hpp"
 #include "core/build_parts.hpp"
 #include "agents/observation_feed.hpp"
 #include "collect/expert_episode.hpp"
@@ -20,10 +20,7 @@
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "data/h5_episode.hpp"
-#include "core/progress.hpp"
-#include "core/mpi.hpp"
-#include "core/run_lock.hpp"
-#include "core/worker_pool.hpp"
+#include "core/job.hpp"
 #include "methods/method.hpp"
 #include "sense/sensor_shift.hpp"
 #include "world/town.hpp"
@@ -206,8 +203,9 @@ void claim_eval_folder(const std::string& out, const nlohmann::json& run,
 
 EvalReport run_eval(const Settings& base, const EvalRequest& req) {
   require_sumo("eval of a driving agent");
-  // eval.device: its one-line error here, before any worker (which resolves it again).
-  resolve_device(base.eval.device, "eval.device");
+  // eval.device: its one-line error here, before any worker (which resolves it again); the
+  // device the run is on is part of its claim.
+  const std::string device = resolve_device(base.eval.device, "eval.device");
   Suite suite = load_suite(base.eval.suite);
   Settings settings = base;
   settings.world.town = suite.town;
@@ -224,34 +222,16 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
 
   const std::string& out = settings.eval.out;
   const std::string ep_dir = out + "/episodes";
-  const RunLock lock = lock_run_folder(out, "eval");
-  std::error_code ec;
-  fs::create_directories(ep_dir, ec);
-  if (ec) throw IoError("cannot create output folder " + ep_dir + ": " + ec.message());
-  remove_stale_temporaries(out);
-  remove_stale_temporaries(ep_dir);
-
   // What this folder holds: a rerun must be the same run, or the records would mix.
   nlohmann::json run = {{"agent", req.agent},     {"label", label},
                         {"suite", suite.name},    {"town", suite.town},
                         {"traffic", suite.traffic}, {"trials", trials},
-                        {"checkpoint", req.checkpoint}, {"sensor", settings.eval.sensor}};
+                        {"checkpoint", req.checkpoint}, {"sensor", settings.eval.sensor},
+                        {"device", device}};
   if (settings.eval.sensor != "clean") run["sensor_shift"] = sensor_shift_json(settings.eval);
-  // Folders written before eval.sensor existed hold clean runs.
-  claim_eval_folder(out, run, {"agent", "suite", "trials", "checkpoint", "sensor", "sensor_shift"},
-                    [](nlohmann::json& prev) {
-                      if (!prev.contains("sensor")) prev["sensor"] = "clean";
-                    });
 
   std::vector<EpisodeResult> results(total);
-  std::vector<int> todo;
-  for (int i = 0; i < total; ++i)
-    if (!load_record(ep_dir + "/" + episode_record_name(i), &results[i])) todo.push_back(i);
-
   EvalReport report;
-  auto t_start = std::chrono::steady_clock::now();
-  const std::unique_ptr<Progress> progress = job_progress(
-      req.quiet, "eval " + label + " on " + suite.name, total, static_cast<long>(todo.size()));
   // Episode i is trial i % trials of task i / trials.
   auto identify = [&](EpisodeResult& r, int i) {
     r.index = i;
@@ -260,8 +240,32 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
   };
   auto task_of = [&](int i) { return suite_episode_task(suite, trials, i); };
   std::unique_ptr<World> world;
-  auto setup = [&] { world = std::make_unique<World>(settings); };
-  auto job = [&](int i) {
+  JobSpec spec;
+  spec.command = "eval";
+  spec.out = out;
+  spec.subfolders = {"episodes"};
+  // Folders written before eval.sensor existed hold clean runs, and before the device was
+  // recorded, CPU runs.
+  spec.claim = [&] {
+    claim_eval_folder(out, run,
+                      {"agent", "suite", "trials", "checkpoint", "sensor", "sensor_shift", "device"},
+                      [](nlohmann::json& prev) {
+                        if (!prev.contains("sensor")) prev["sensor"] = "clean";
+                        if (!prev.contains("device")) prev["device"] = "cpu";
+                      });
+  };
+  spec.total = total;
+  spec.complete = [&](int i) {
+    return load_record(ep_dir + "/" + episode_record_name(i), &results[i]);
+  };
+  spec.label = "eval " + label + " on " + suite.name;
+  spec.quiet = req.quiet;
+  spec.workers = settings.eval.workers;
+  // A crashed worker or SUMO failure is the infrastructure's fault: run the episode again.
+  spec.attempts = settings.eval.max_attempts;
+  spec.in_process = req.in_process;
+  spec.setup = [&] { world = std::make_unique<World>(settings); };
+  spec.run = [&](int i) {
     inject_crash("eval", i, out);  // CAUSALDRIVE_INJECT_CRASH (core/fault.hpp)
     // The agent is made after the fork: each episode starts from the same agent state.
     auto agent = new_agent(world.get());
@@ -293,59 +297,47 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
     inject_crash("eval-recorded", i, out, CrashScope::ProcessGroup);
     return std::to_string(stats.steps) + " " + r.outcome;
   };
-  auto on_done = [&](int i, const std::string& note) {
+  spec.done = [](int i, const std::string& note, std::string* line) {
     std::istringstream in(note);
     long steps = 0;
     std::string outcome;
     in >> steps >> outcome;
-    report.steps += steps;
-    ++report.run_now;
-    if (progress) progress->advance(1, "episode " + std::to_string(i) + ": " + outcome);
+    *line = "episode " + std::to_string(i) + ": " + outcome;
+    return steps;
   };
-  // A crashed worker or SUMO failure is the infrastructure's fault: run the episode again.
-  PoolReport pool;
-  if (req.in_process) {
-    // One after another in this process; an error (the agent's included) ends the call, and
-    // the episodes recorded before it are kept for the next.
-    setup();
-    for (int i : todo) on_done(i, job(i));
-  } else {
-    pool = run_worker_pool_with_retries(settings.eval.workers, todo, settings.eval.max_attempts,
-                                        setup, job, on_done);
-  }
-  const std::vector<int>& remaining = pool.failed;
-  const std::string& error = pool.first_error;
-  if (progress) progress->finish();
-  report.steps = mpi_sum(report.steps);  // the whole job's, under MPI
-  report.run_now = static_cast<int>(mpi_sum(report.run_now));
-  if (!mpi_lead()) return report;  // under MPI rank 0 writes results.json, last
-  nlohmann::json episodes = nlohmann::json::array();
-  for (int i = 0; i < total; ++i) {
-    EpisodeResult& r = results[i];
-    const bool failed = std::find(remaining.begin(), remaining.end(), i) != remaining.end();
-    if (!failed && std::find(todo.begin(), todo.end(), i) != todo.end() &&
-        !load_record(ep_dir + "/" + episode_record_name(i), &r))
-      throw DataError("episode record " + episode_record_name(i) + " is missing after its run");
-    if (failed) {
-      // Never a policy failure: recorded apart, and run again by the next call.
-      Task t = task_of(i);
-      r = EpisodeResult{};
-      identify(r, i);
-      r.scenario = t.scenario;
-      r.traffic_seed = t.traffic_seed;
-      r.route_length_m = t.route_length;
-      r.outcome = "infrastructure_failure";
-      r.failure = error;
+  // results.json: the folder's commit, by rank 0 while it holds the lock. An episode that still
+  // failed is never a policy failure: recorded apart with its own error, run again next time.
+  auto write_results = [&](const JobResult& job) {
+    const std::vector<int>& remaining = job.pool.failed;
+    nlohmann::json episodes = nlohmann::json::array();
+    for (int i = 0; i < total; ++i) {
+      EpisodeResult& r = results[i];
+      const bool failed = std::find(remaining.begin(), remaining.end(), i) != remaining.end();
+      if (!failed && std::find(job.todo.begin(), job.todo.end(), i) != job.todo.end() &&
+          !load_record(ep_dir + "/" + episode_record_name(i), &r))
+        throw DataError("episode record " + episode_record_name(i) + " is missing after its run");
+      if (failed) {
+        Task t = task_of(i);
+        r = EpisodeResult{};
+        identify(r, i);
+        r.scenario = t.scenario;
+        r.traffic_seed = t.traffic_seed;
+        r.route_length_m = t.route_length;
+        r.outcome = "infrastructure_failure";
+        r.failure = job.pool.error_of(i);
+      }
+      episodes.push_back(episode_to_json(r));
     }
-    episodes.push_back(episode_to_json(r));
-  }
-  report.results = run;
-  report.results["agent_class"] = agent_name;
-  report.results["episodes"] = episodes;
-  report.results["summary"] = summarize(results);
-  write_file_atomic(out + "/results.json", report.results.dump(2) + "\n");
-  report.seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+    report.results = run;
+    report.results["agent_class"] = agent_name;
+    report.results["episodes"] = episodes;
+    report.results["summary"] = summarize(results);
+    write_file_atomic(out + "/results.json", report.results.dump(2) + "\n");
+  };
+  const JobResult job = run_job(spec, write_results);
+  report.steps = job.units;
+  report.run_now = job.run_now;
+  report.seconds = job.seconds;
   return report;
 }
 

@@ -9,7 +9,7 @@
 #include "core/error.hpp"
 #include "methods/policy_family.hpp"
 #include "nn/policy_nets.hpp"
-#include "train/device.hpp"
+#include "device/device.hpp"
 
 namespace cd {
 

@@ -36,17 +36,18 @@ std::string subcommand_of(int argc, char** argv) {
   return "";
 }
 
-// One line for an error; under MPI it names the rank and ends every rank of the job (the
-// others may be waiting for this one), and an error another rank reported is not repeated.
+// One line for an error. Under MPI it names the rank, and is printed (and flushed) before any
+// abort: an error every rank knows (throw_job_error, the lead's lock or claim) ends each rank on
+// its own, rank 0 printing it and the others nothing; an error this rank met alone ends every
+// rank with MPI_Abort (the others may be waiting for this one in a collective), after its line.
 int fail(const char* kind, const std::exception& e, int code) {
-  if (dynamic_cast<const cd::MpiEchoError*>(&e) == nullptr) {
-    if (cd::mpi_distributed())
-      std::fprintf(stderr, "causaldrive: %s: %s: %s\n", kind, cd::mpi_where().c_str(), e.what());
-    else
-      std::fprintf(stderr, "causaldrive: %s: %s\n", kind, e.what());
-  }
+  if (dynamic_cast<const cd::MpiEchoError*>(&e) != nullptr) return code;
+  if (cd::mpi_distributed())
+    std::fprintf(stderr, "causaldrive: %s: %s: %s\n", kind, cd::mpi_where().c_str(), e.what());
+  else
+    std::fprintf(stderr, "causaldrive: %s: %s\n", kind, e.what());
   std::fflush(stderr);
-  cd::mpi_abort(code);
+  if (!cd::mpi_error_shared()) cd::mpi_abort(code);
   return code;
 }
 

@@ -13,10 +13,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/fault.hpp"
-#include "core/progress.hpp"
-#include "core/mpi.hpp"
-#include "core/run_lock.hpp"
-#include "core/worker_pool.hpp"
+#include "core/job.hpp"
 #include "data/h5_io.hpp"
 #include "data/h5_episode.hpp"
 #include "world/town.hpp"
@@ -45,22 +42,21 @@ CollectReport collect(const Settings& settings, const CollectOptions& options) {
   require_sumo("collect");
   resolve_network(settings.world.town);  // a bad town is one clear error, not one per worker
   const std::string& out = settings.collect.out;
-  const RunLock lock = lock_run_folder(out, "collect");  // creates the folder
-  remove_stale_temporaries(out);
-
-  std::vector<int> todo;
-  for (int i = 0; i < settings.collect.episodes; ++i)
-    if (!episode_complete(out + "/" + episode_file_name(i))) todo.push_back(i);
-
   CollectReport report;
-  auto t0 = std::chrono::steady_clock::now();
-  int total = settings.collect.episodes;
-  const std::unique_ptr<Progress> progress =
-      job_progress(options.quiet, "collect", total, static_cast<long>(todo.size()));
   // Each worker loads the network once; each episode runs in a fresh fork of it.
   std::unique_ptr<World> world;
-  auto setup = [&] { world = std::make_unique<World>(settings); };
-  auto job = [&](int i) {
+  JobSpec spec;
+  spec.command = "collect";
+  spec.out = out;
+  spec.total = settings.collect.episodes;
+  spec.complete = [&](int i) { return episode_complete(out + "/" + episode_file_name(i)); };
+  spec.label = "collect";
+  spec.quiet = options.quiet;
+  spec.workers = settings.collect.workers;
+  spec.attempts = kMaxAttempts;
+  spec.failure_what = "collection";
+  spec.setup = [&] { world = std::make_unique<World>(settings); };
+  spec.run = [&](int i) {
     ExpertRecorder recorder(*world, settings);
     EpisodeData data;
     EpisodeMeta meta;
@@ -75,53 +71,46 @@ CollectReport collect(const Settings& settings, const CollectOptions& options) {
     inject_crash("collect", i, out, CrashScope::ProcessGroup);
     return std::to_string(s.frames) + " " + s.outcome;
   };
-  auto on_done = [&](int i, const std::string& note) {
+  spec.done = [](int i, const std::string& note, std::string* line) {
     std::istringstream in(note);
     long f = 0;
     std::string outcome;
     in >> f >> outcome;
-    report.frames += f;
-    if (progress) progress->advance(1, "episode " + std::to_string(i) + ": " + outcome);
+    *line = "episode " + std::to_string(i) + ": " + outcome;
+    return f;
   };
-  const PoolReport pool = run_worker_pool_with_retries(settings.collect.workers, todo,
-                                                       kMaxAttempts, setup, job, on_done);
-  const std::vector<int>& remaining = pool.failed;
-  const std::string& error = pool.first_error;
-  if (progress) progress->finish();
-  report.frames = mpi_sum(report.frames);  // the whole job's, under MPI
-  report.recorded_now = static_cast<int>(todo.size() - remaining.size());
-  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  if (!remaining.empty()) {
-    throw_job_error("collection failed for " + std::to_string(remaining.size()) +
-                    " episode(s) (" + error + "); rerun the same command to resume");
-  }
-  if (!mpi_lead()) return report;  // under MPI rank 0 writes the manifest, last
-
-  nlohmann::json summary = nlohmann::json::array();
-  for (int i = 0; i < total; ++i) {
-    EpisodeMeta m = read_episode_meta(out + "/" + episode_file_name(i));
-    EpisodeSummary s;
-    s.index = i;
-    s.outcome = m.outcome;
-    auto get = [&](const char* k) {
-      auto it = m.extra.find(k);
-      return it == m.extra.end() ? std::string() : it->second;
-    };
-    s.route_length = std::atof(get("route_length_m").c_str());
-    s.distance = std::atof(get("distance_m").c_str());
-    s.red_light_violations = std::atoi(get("red_light_violations").c_str());
-    s.collided_with = get("collided_with");
-    report.episodes.push_back(s);
-    summary.push_back({{"file", episode_file_name(i)},
-                       {"outcome", s.outcome},
-                       {"route_length_m", s.route_length},
-                       {"distance_m", s.distance},
-                       {"red_light_violations", s.red_light_violations},
-                       {"collided_with", s.collided_with},
-                       {"seed", m.seed}});
-  }
-  nlohmann::json manifest = {{"settings", settings_to_json(settings)}, {"episodes", summary}};
-  write_file_atomic(out + "/collect.json", manifest.dump(2) + "\n");
+  // The manifest (collect.json): the folder's commit, by rank 0 while it holds the lock.
+  auto write_manifest = [&](const JobResult&) {
+    nlohmann::json summary = nlohmann::json::array();
+    for (int i = 0; i < settings.collect.episodes; ++i) {
+      EpisodeMeta m = read_episode_meta(out + "/" + episode_file_name(i));
+      EpisodeSummary s;
+      s.index = i;
+      s.outcome = m.outcome;
+      auto get = [&](const char* k) {
+        auto it = m.extra.find(k);
+        return it == m.extra.end() ? std::string() : it->second;
+      };
+      s.route_length = std::atof(get("route_length_m").c_str());
+      s.distance = std::atof(get("distance_m").c_str());
+      s.red_light_violations = std::atoi(get("red_light_violations").c_str());
+      s.collided_with = get("collided_with");
+      report.episodes.push_back(s);
+      summary.push_back({{"file", episode_file_name(i)},
+                         {"outcome", s.outcome},
+                         {"route_length_m", s.route_length},
+                         {"distance_m", s.distance},
+                         {"red_light_violations", s.red_light_violations},
+                         {"collided_with", s.collided_with},
+                         {"seed", m.seed}});
+    }
+    nlohmann::json manifest = {{"settings", settings_to_json(settings)}, {"episodes", summary}};
+    write_file_atomic(out + "/collect.json", manifest.dump(2) + "\n");
+  };
+  const JobResult job = run_job(spec, write_manifest);
+  report.frames = job.units;
+  report.recorded_now = job.run_now;
+  report.seconds = job.seconds;
   return report;
 }
 

@@ -12,12 +12,18 @@
 
 #include "core/error.hpp"
 #include "core/mpi.hpp"
+#include "core/process.hpp"
 
 namespace cd {
 
 std::string temp_path_for(const std::string& final_path) {
-  // The pid keeps concurrent writers (worker processes) apart; ".tmp" marks it as unfinished.
-  return final_path + "." + std::to_string(::getpid()) + ".tmp";
+  // Host, MPI rank and pid keep concurrent writers apart (worker processes; ranks on other
+  // nodes, whose containers may reuse a pid); ".tmp" marks it as unfinished.
+  std::string host = host_name();
+  for (char& c : host)
+    if (c == '/' || c == ' ') c = '_';
+  return final_path + "." + host + "." + std::to_string(mpi_place().rank) + "." +
+         std::to_string(::getpid()) + ".tmp";
 }
 
 void commit_temp_file(const std::string& tmp, const std::string& final_path) {

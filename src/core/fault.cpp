@@ -2,6 +2,7 @@
 
 #include <signal.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cstdlib>
 #include <filesystem>
@@ -46,8 +47,17 @@ void inject_crash(const std::string& site, long index, const std::string& marker
   // The test hook's variable, documented in core/fault.hpp.
   const char* value = std::getenv(kInjectCrashEnv);
   if (!value || !*value) return;
-  const CrashSpec spec = parse_crash_spec(value);
-  if (spec.site != site || spec.index != index) return;
+  // Several specs, comma-separated, kill at each of their points.
+  CrashSpec spec;
+  bool hit = false;
+  std::string list = value;
+  for (size_t start = 0; start <= list.size() && !hit;) {
+    const size_t comma = std::min(list.find(',', start), list.size());
+    spec = parse_crash_spec(list.substr(start, comma - start));
+    hit = spec.site == site && spec.index == index;
+    start = comma + 1;
+  }
+  if (!hit) return;
   if (!spec.always && !marker_dir.empty()) {
     const std::string marker =
         marker_dir + "/.crash-injected-" + site + "-" + std::to_string(index);

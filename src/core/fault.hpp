@@ -13,7 +13,8 @@
 //                      (no marker: it dies there on every run while the variable is set)
 // Without :always only the first time counts: a marker file <marker_dir>/.crash-injected-
 // <site>-<index> remembers it (with no marker_dir nothing is remembered: every time counts).
-// The older form <i>[:always] means eval:<i>[:always].
+// The older form <i>[:always] means eval:<i>[:always]. Several specs, comma-separated
+// (eval:1:always,eval:2:always), each kill at their point.
 #include <optional>
 #include <string>
 

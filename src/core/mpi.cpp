@@ -24,14 +24,26 @@ pid_t mpi_pid = 0;  // the process that started MPI: a forked worker never takes
 
 bool in_job() { return place.size > 1 && getpid() == mpi_pid; }
 
-// The launcher's world size from its environment (OpenMPI, then PMI/PMIx, Slurm's srun).
-int launcher_size() {
-  for (const char* var : {"OMPI_COMM_WORLD_SIZE", "PMIX_SIZE", "PMI_SIZE"})
-    if (const char* v = std::getenv(var)) return std::max(1, std::atoi(v));
-  return 1;
-}
+bool error_shared = false;  // this rank's error is known to every rank (no abort needed)
 
 }  // namespace
+
+Launch detect_launch(const std::function<const char*(const char*)>& env) {
+  auto number = [&](const char* var) {
+    const char* v = env(var);
+    return v == nullptr ? -1 : std::max(0, std::atoi(v));
+  };
+  const int slurm_tasks = number("SLURM_STEP_NUM_TASKS");  // set by srun for its tasks only
+  if (const int n = number("OMPI_COMM_WORLD_SIZE"); n >= 0) return {"mpirun", std::max(1, n)};
+  if (const int n = number("PMI_SIZE"); n >= 0)
+    return {"PMI (srun --mpi=pmi2, mpiexec)", std::max(1, n)};
+  // PMIx names the job and the rank, not its size; under srun the step's task count does.
+  if (env("PMIX_RANK") != nullptr || env("PMIX_NAMESPACE") != nullptr)
+    return {"PMIx (srun --mpi=pmix, prterun)", slurm_tasks > 0 ? slurm_tasks : 0};
+  // srun with no MPI plugin: tasks with no way to reach each other.
+  if (slurm_tasks > 1 && env("SLURM_PROCID") != nullptr) return {"srun", slurm_tasks};
+  return {"", 1};
+}
 
 bool mpi_compiled() {
 #ifdef CD_HAVE_MPI
@@ -42,21 +54,27 @@ bool mpi_compiled() {
 }
 
 MpiSession::MpiSession(int* argc, char*** argv) {
-  const int size = launcher_size();
+  const Launch launch = detect_launch([](const char* var) { return std::getenv(var); });
+  const std::string tasks = launch.size > 0 ? std::to_string(launch.size) + " tasks" : "tasks";
 #ifdef CD_HAVE_MPI
-  if (size > 1 || std::getenv("OMPI_COMM_WORLD_SIZE")) {
+  if (!launch.launcher.empty()) {
     MPI_Init(argc, argv);
     MPI_Comm_rank(MPI_COMM_WORLD, &place.rank);
     MPI_Comm_size(MPI_COMM_WORLD, &place.size);
     mpi_pid = getpid();
     started = true;
+    if (launch.size > 1 && place.size != launch.size)
+      throw ConfigError(launch.launcher + " started " + tasks + ", but MPI sees " +
+                        std::to_string(place.size) +
+                        " rank(s): each would run the whole job; launch with srun --mpi=pmix "
+                        "(or pmi2; srun --mpi=list shows them) or mpirun");
   }
 #else
   (void)argc;
   (void)argv;
-  if (size > 1)
-    throw ConfigError("started by mpirun with " + std::to_string(size) +
-                      " ranks, but this build has no MPI (install libopenmpi-dev and rebuild)");
+  if (launch.size > 1)
+    throw ConfigError("started by " + launch.launcher + " with " + tasks +
+                      ", but this build has no MPI (install libopenmpi-dev and rebuild)");
 #endif
 }
 
@@ -148,8 +166,32 @@ std::vector<std::string> mpi_all_gather(const std::string& text) {
 }
 
 void throw_job_error(const std::string& what) {
+  error_shared = in_job();
   if (place.rank == 0) throw Error(what);
   throw MpiEchoError(what);
+}
+
+bool mpi_error_shared() { return error_shared; }
+
+void mpi_lead_step(const std::function<void()>& step) {
+  if (!in_job()) {
+    step();
+    return;
+  }
+  if (place.rank == 0) {
+    try {
+      step();
+    } catch (const std::exception& e) {
+      mpi_broadcast(std::string(e.what()).empty() ? std::string("error") : std::string(e.what()));
+      error_shared = true;  // the others stop too: no abort
+      throw;
+    }
+  }
+  const std::string error = mpi_broadcast(std::string());
+  if (!error.empty()) {
+    error_shared = true;
+    throw MpiEchoError(error);
+  }
 }
 
 void mpi_barrier() {

@@ -8,6 +8,7 @@
 // to do is broadcast, each rank runs every N-th of it in one world, and the failures are
 // gathered to every rank. Rank 0 alone removes stale temporaries, holds the run folder's lock
 // and writes the summary; the other ranks share its lock and print nothing.
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -27,9 +28,20 @@ struct MpiPlace {
   int size = 1;
 };
 
-// Starts MPI when the process was launched by mpirun (and the build has MPI), for the life
-// of the object; main() holds one. Throws ConfigError when mpirun started several ranks of a
-// build without MPI.
+// The launcher that started this process, from its environment variables: "mpirun" (OpenMPI),
+// PMI-1/2 (srun --mpi=pmi2, MPICH's mpiexec), PMIx (srun --mpi=pmix, prterun), "srun" (tasks
+// without an MPI plugin), or "" when none did (an sbatch script without srun is one process).
+// `size` is the task count it names: 1 when not launched, 0 when launched but the size is MPI's
+// to tell (PMIx outside srun).
+struct Launch {
+  std::string launcher;
+  int size = 1;
+};
+Launch detect_launch(const std::function<const char*(const char*)>& env);
+
+// Starts MPI when a launcher started the process (and the build has MPI), for the life of the
+// object; main() holds one. Throws ConfigError when a launcher started several tasks of a build
+// without MPI, or more tasks than MPI sees ranks (srun with no MPI plugin this MPI can use).
 class MpiSession {
  public:
   MpiSession(int* argc, char*** argv);
@@ -41,6 +53,14 @@ class MpiSession {
 // An error every rank of the job raises at once (after a collective, on the same gathered
 // facts): rank 0 reports it, the other ranks stop without repeating it.
 [[noreturn]] void throw_job_error(const std::string& what);
+
+// Runs `step` on rank 0 alone (the lock, the folder's claim): its error stops every rank, rank 0
+// rethrowing it and the others raising MpiEchoError. Outside an MPI job: just runs it.
+void mpi_lead_step(const std::function<void()>& step);
+
+// Whether the error being raised is known to every rank (throw_job_error, mpi_lead_step): the
+// ranks then end on their own, and no rank needs MPI_Abort.
+bool mpi_error_shared();
 
 // Whether this build was compiled with MPI.
 bool mpi_compiled();

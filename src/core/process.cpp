@@ -5,6 +5,8 @@
 #include <unistd.h>
 
 #include <array>
+#include <cerrno>
+#include <cstdlib>
 #include <cstdio>
 #include <cstring>
 
@@ -15,6 +17,8 @@ extern char** environ;
 namespace cd {
 
 std::string host_name() {
+  // Containers on different nodes may share one host name: CAUSALDRIVE_HOST tells them apart.
+  if (const char* v = std::getenv("CAUSALDRIVE_HOST"); v != nullptr && *v != '\0') return v;
   char buf[256] = {0};
   if (gethostname(buf, sizeof buf - 1) != 0) return "unknown";
   return buf;
@@ -54,10 +58,19 @@ ProcessResult run_process(const std::vector<std::string>& argv,
   ssize_t n;
   while ((n = read(fds[0], buf.data(), buf.size())) > 0) result.output.append(buf.data(), n);
   close(fds[0]);
-  int status = 0;
-  waitpid(pid, &status, 0);
-  if (WIFEXITED(status)) result.exit_code = WEXITSTATUS(status);
+  const int status = wait_child(pid);
+  if (status >= 0 && WIFEXITED(status)) result.exit_code = WEXITSTATUS(status);
   return result;
+}
+
+int wait_child(pid_t pid) {
+  int status = 0;
+  for (;;) {
+    if (::waitpid(pid, &status, 0) == pid) return status;
+    // ECHILD: the child was reaped elsewhere, or SIGCHLD is ignored (a Python host may set
+    // that) and the kernel reaped it: it has ended, its status is lost.
+    if (errno != EINTR) return -1;
+  }
 }
 
 }  // namespace cd

@@ -1,5 +1,7 @@
 #pragma once
 // Running external programs (netgenerate) without a shell.
+#include <sys/types.h>
+
 #include <string>
 #include <vector>
 
@@ -14,7 +16,13 @@ struct ProcessResult {
 ProcessResult run_process(const std::vector<std::string>& argv,
                           const std::vector<std::string>& extra_env = {});
 
-// This machine's host name ("unknown" when it cannot be read): lock files, MPI messages.
+// Waits for child `pid` (retrying when interrupted): its wait status, or -1 when it cannot be
+// had (ECHILD: reaped elsewhere, or SIGCHLD ignored by the host process; the child has ended).
+int wait_child(pid_t pid);
+
+// This machine's host name ("unknown" when it cannot be read): lock files, MPI messages,
+// temporary names. CAUSALDRIVE_HOST, when set, replaces it (containers on several nodes that
+// share one name).
 std::string host_name();
 
 }  // namespace cd

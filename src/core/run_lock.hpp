@@ -1,9 +1,12 @@
 #pragma once
 // One job at a time in a run folder. A job that writes a folder (collect, train, eval, suite
-// --builtin) holds `DIR/causaldrive.lock`: a file beside the folder's record naming the
-// holder (host, pid, command, start time), locked with flock(2). A second job into the same
-// folder is refused at once with one line naming the holder. flock dies with its process, so
-// a lock file left by a dead job is free: the next job takes it over and says so.
+// --builtin) holds `DIR/causaldrive.lock`: a file naming the holder (command, host, pid, start
+// time, a random token) with a heartbeat counter the holder rewrites every period, locked with
+// flock(2) where the file system has it. A second job into the same folder is refused with one
+// line naming the holder. A holder that died is taken over, with one line saying so: at once
+// when flock proves it (or its pid is gone from this host), after three silent heartbeat
+// periods for a holder on another host (node-local flock, or no flock at all: docs/cluster.md).
+// The file is never removed while held; a released one says "state released".
 //
 // Within one process the lock is re-entrant (dagger's rounds, cim's validation eval write into
 // folders their caller may hold); forked workers inherit their parent's hold. The ranks of an
@@ -31,6 +34,9 @@ class RunLock {
 
   bool held() const { return impl_ != nullptr; }
   void release();
+  // Throws BusyError when another job took the folder over while this one held it (its
+  // heartbeat saw another holder's token: docs/cluster.md). A job checks before its summary.
+  void check() const;
 
   struct Impl;  // run_lock.cpp
   explicit RunLock(std::shared_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -38,6 +44,19 @@ class RunLock {
  private:
   std::shared_ptr<Impl> impl_;
 };
+
+// The heartbeat period in seconds: CAUSALDRIVE_LOCK_BEAT_S, default 10 (a ConfigError when it
+// is not a number in (0, 3600]). A holder on another host that has not beaten for three periods
+// is taken over.
+inline constexpr const char* kLockBeatEnv = "CAUSALDRIVE_LOCK_BEAT_S";
+double lock_beat_seconds();
+
+// For the tests of file systems without flock, or with a node-local one: the flock(2) the lock
+// calls (nullptr: the real one).
+namespace lock_testing {
+using FlockFn = int (*)(int fd, int operation);
+void set_flock(FlockFn fn);
+}  // namespace lock_testing
 
 // The lock file's name inside a run folder.
 inline constexpr const char* kRunLockName = "causaldrive.lock";

@@ -1,6 +1,7 @@
 #pragma once
 // Small text helpers shared by the readers of text formats (CSV series, the default config's
 // comments, report's Markdown).
+#include <string>
 #include <string_view>
 
 namespace cd {
@@ -12,5 +13,8 @@ inline std::string_view trim(std::string_view s) {
   while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
   return s;
 }
+
+// printf's formatting into a string of any length (an SVG element with a long label).
+std::string format(const char* fmt, ...) __attribute__((format(printf, 1, 2)));
 
 }  // namespace cd

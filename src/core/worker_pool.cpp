@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <csignal>
+#include <cstdlib>
 #include <cstdio>
 #include <cstring>
 #include <map>
@@ -115,8 +116,10 @@ PoolReport run_worker_pool(int workers, const std::vector<int>& todo,
       if (kind == "done") {
         done[idx] = true;
         on_done(idx, rest);
-      } else if (kind == "error" && result.first_error.empty()) {
-        result.first_error = "job " + std::to_string(idx) + ": " + rest;
+      } else if (kind == "error") {
+        const std::string line = "job " + std::to_string(idx) + ": " + rest;
+        if (result.first_error.empty()) result.first_error = line;
+        if (idx >= 0) result.errors[idx] = line;
       }
     }
   }
@@ -129,6 +132,11 @@ PoolReport run_worker_pool(int workers, const std::vector<int>& todo,
   }
   for (int i : todo)
     if (!done.count(i)) result.failed.push_back(i);
+  for (auto it = result.errors.begin(); it != result.errors.end();)
+    it = done.count(it->first) ? result.errors.erase(it) : std::next(it);
+  for (int i : result.failed)  // a job that never said why (its worker died): the worker's line
+    if (!result.errors.count(i) && !result.first_error.empty())
+      result.errors[i] = result.first_error;
   return result;
 }
 
@@ -152,15 +160,30 @@ PoolReport run_worker_pool_with_retries(
     PoolReport run = run_worker_pool(workers, report.failed, setup, job, on_done);
     if (!run.first_error.empty()) report.first_error = run.first_error;
     report.failed = run.failed;
+    report.errors = run.errors;  // the last attempt's, of what still failed
   }
   if (mpi_distributed()) {
-    report.failed = mpi_all_gather(report.failed);
-    std::sort(report.failed.begin(), report.failed.end());
-    const std::vector<std::string> errors =
-        mpi_all_gather(report.first_error.empty() ? "" : mpi_where() + ": " + report.first_error);
-    report.first_error.clear();
-    for (const std::string& e : errors)
+    // Every rank's failures with their own lines, each named by the rank where it happened:
+    // one text per rank, "N<tab>line" per failed job.
+    const std::string where = mpi_where() + ": ";
+    std::string mine;
+    for (int i : report.failed) mine += std::to_string(i) + "\t" + where + report.error_of(i) + "\n";
+    const std::vector<std::string> texts = mpi_all_gather(mine);
+    const std::vector<std::string> firsts =
+        mpi_all_gather(report.first_error.empty() ? "" : where + report.first_error);
+    report = PoolReport{};
+    for (const std::string& e : firsts)
       if (report.first_error.empty() && !e.empty()) report.first_error = e;
+    for (const std::string& text : texts) {
+      std::istringstream in(text);
+      for (std::string line; std::getline(in, line);) {
+        const size_t tab = line.find('\t');
+        const int i = std::atoi(line.substr(0, tab).c_str());
+        report.failed.push_back(i);
+        report.errors[i] = line.substr(tab + 1);
+      }
+    }
+    std::sort(report.failed.begin(), report.failed.end());
   }
   return report;
 }

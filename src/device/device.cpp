@@ -1,4 +1,4 @@
-#include "train/device.hpp"
+#include "device/device.hpp"
 
 #include <sys/wait.h>
 #include <unistd.h>
@@ -13,6 +13,7 @@
 #include "app/build_info.hpp"
 #include "core/build_parts.hpp"
 #include "core/error.hpp"
+#include "core/process.hpp"
 
 // libtorch 2.4 named autocast's state per device type; 1.13 (Debian 12's) had CUDA's alone.
 #if TORCH_VERSION_MAJOR > 2 || (TORCH_VERSION_MAJOR == 2 && TORCH_VERSION_MINOR >= 4)
@@ -29,10 +30,9 @@ bool cuda_usable() {
     const pid_t pid = fork();
     if (pid == 0) _exit(torch::cuda::is_available() && torch::cuda::device_count() > 0 ? 0 : 1);
     if (pid < 0) return false;
-    int status = 0;
-    while (waitpid(pid, &status, 0) < 0) {
-    }
-    return WIFEXITED(status) && WEXITSTATUS(status) == 0;
+    // -1: its status is lost (SIGCHLD ignored by a host process): no GPU is assumed.
+    const int status = wait_child(pid);
+    return status >= 0 && WIFEXITED(status) && WEXITSTATUS(status) == 0;
   }();
   return usable;
 }

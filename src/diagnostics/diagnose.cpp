@@ -69,6 +69,9 @@ std::vector<std::string> components_of(const Checkpoint& ck) {
 }
 
 // Which episodes are compared: the run's validation episodes (its own data folder), or all.
+// The run's record names its validation files; a record made before it did gives only their
+// count, and the episodes are drawn again as training drew them (right while the folder is
+// unchanged).
 std::vector<int> chosen_episodes(const DiagnoseOptions& o, const Checkpoint& ck,
                                  const EpisodeSet& set, std::string& split) {
   const int n = static_cast<int>(set.episodes.size());
@@ -80,6 +83,18 @@ std::vector<int> chosen_episodes(const DiagnoseOptions& o, const Checkpoint& ck,
   if (!own)
     throw ConfigError("--split val: " + o.data + " is not the data folder " + o.checkpoint +
                       " was trained on (" + ck.data_dir + "); use --split all");
+  if (!ck.val_files.empty()) {
+    std::vector<int> val;
+    for (const std::string& file : ck.val_files) {
+      auto it = std::find_if(set.episodes.begin(), set.episodes.end(),
+                             [&](const PackedEpisode& e) { return e.file == file; });
+      if (it == set.episodes.end())
+        throw DataError(o.data + " no longer holds " + file + ", a validation episode of " +
+                        o.checkpoint + "; use --split all");
+      val.push_back(static_cast<int>(it - set.episodes.begin()));
+    }
+    return val;
+  }
   const json& train = ck.settings.at("train");
   std::vector<int> val = choose_val_episodes(n, train.at("val_fraction").get<double>(),
                                              train.at("seed").get<uint64_t>());
@@ -232,6 +247,8 @@ DiagnosisReport run_diagnosis(const DiagnoseOptions& o) {
   report.data = o.data;
   report.method = ck.method;
   report.split = split;
+  if (split == "val")
+    for (int e : episodes) report.episodes.push_back(set.episodes[e].file);
 
   if (!o.plots.empty()) {
     std::vector<int> chosen = o.plot_episodes;
@@ -276,7 +293,8 @@ json diagnosis_json(const DiagnosisReport& r) {
   }
   return {{"checkpoint", r.checkpoint}, {"data", r.data},     {"method", r.method},
           {"split", r.split},           {"domain", r.domain}, {"components", r.components},
-          {"frames", r.frames},         {"situations", situations}};
+          {"frames", r.frames},         {"episodes", r.episodes},
+          {"situations", situations}};
 }
 
 std::string diagnosis_table(const DiagnosisReport& r) {

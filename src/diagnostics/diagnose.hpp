@@ -37,6 +37,7 @@ struct DiagnosisReport {
   std::string domain = kDrivingDomain;
   std::vector<std::string> components;  // throttle, brake[, steer] | target_speed | a0..aK
   long frames = 0;                      // frames compared
+  std::vector<std::string> episodes;    // split val: the compared episodes' file names
   std::vector<SituationStats> situations;  // every situation, in situation_names() order
 };
 

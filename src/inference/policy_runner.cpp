@@ -7,7 +7,7 @@
 #include "data/mujoco_episode.hpp"
 #include "datasets/episode_set.hpp"
 #include "nn/policy_nets.hpp"
-#include "train/device.hpp"
+#include "device/device.hpp"
 
 namespace cd {
 

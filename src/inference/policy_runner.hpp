@@ -49,7 +49,7 @@ class PolicyRunner {
   // damaged checkpoint, ConfigError when `expected_method` is given and differs.
   // `device` (auto | cpu | cuda, eval.device) is resolved at the first run(), not here: a
   // process that only checks a checkpoint before it forks its workers stays free of CUDA
-  // (train/device.hpp). Weights trained on either device load on either.
+  // (device/device.hpp). Weights trained on either device load on either.
   explicit PolicyRunner(const std::string& dir, const std::string& expected_method = "",
                         const std::string& weights_file = kBestFile,
                         const std::string& device = "cpu");

@@ -219,6 +219,7 @@ TrainSummary train_policy_family(const Settings& settings_in, const TrainRequest
     ck.train_samples = static_cast<long>(data.train().size());
     ck.val_samples = static_cast<long>(data.val().size());
     ck.val_episodes = static_cast<int>(data.val_episodes().size());
+    for (int e : data.val_episodes()) ck.val_files.push_back(eps.episodes[e].file);
     ck.train_episodes = static_cast<int>(eps.episodes.size()) - ck.val_episodes;
     ck.lr = s.train.lr;
   }

@@ -13,10 +13,7 @@
 #include "collect/expert_episode.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
-#include "core/progress.hpp"
-#include "core/mpi.hpp"
-#include "core/run_lock.hpp"
-#include "core/worker_pool.hpp"
+#include "core/job.hpp"
 #include "data/h5_io.hpp"
 #include "mujoco/episode_note.hpp"
 
@@ -131,59 +128,53 @@ CollectReport collect(const CollectOptions& o) {
   require_mujoco("collect --env");
   validate(o);
   { Env probe(o.env); }  // a missing model file: one line, before any worker starts
-  const RunLock lock = lock_run_folder(o.out, "collect");  // creates the folder
-  remove_stale_temporaries(o.out);
-
-  std::vector<int> todo;
-  for (int i = 0; i < o.episodes; ++i)
-    if (!episode_complete(o.out + "/" + episode_file_name(i))) todo.push_back(i);
-
   CollectReport report;
-  const auto t0 = std::chrono::steady_clock::now();
-  const std::unique_ptr<Progress> progress =
-      job_progress(o.quiet, "collect " + o.env, o.episodes, static_cast<long>(todo.size()));
+  JobSpec spec;
+  spec.command = "collect";
+  spec.out = o.out;
+  spec.total = o.episodes;
+  spec.complete = [&](int i) { return episode_complete(o.out + "/" + episode_file_name(i)); };
+  spec.label = "collect " + o.env;
+  spec.quiet = o.quiet;
+  spec.workers = o.workers;
+  spec.attempts = kMaxAttempts;
+  spec.failure_what = "collection";
   // Each episode runs in a fresh fork: its env and GL context are made there, never inherited.
-  auto setup = [] {};
-  auto job = [&](int i) {
+  spec.run = [&](int i) {
     MujocoEpisode e = record_episode(o, i);
     write_mujoco_episode(o.out + "/" + episode_file_name(i), e);
     return EpisodeNote{static_cast<long>(e.frames()), e.episode_return}.encode();
   };
-  auto on_done = [&](int i, const std::string& note) {
+  spec.done = [](int i, const std::string& note, std::string* line) {
     const EpisodeNote n = EpisodeNote::decode(note);
-    report.frames += n.steps;
-    if (progress) progress->advance(1, n.progress_line(i));
+    *line = n.progress_line(i);
+    return n.steps;
   };
-  const PoolReport pool =
-      run_worker_pool_with_retries(o.workers, todo, kMaxAttempts, setup, job, on_done);
-  if (progress) progress->finish();
-  report.frames = mpi_sum(report.frames);  // the whole job's, under MPI
-  report.recorded_now = static_cast<int>(todo.size() - pool.failed.size());
-  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  if (!pool.failed.empty()) {
-    throw_job_error("collection failed for " + std::to_string(pool.failed.size()) +
-                    " episode(s) (" + pool.first_error + "); rerun the same command to resume");
-  }
-  if (!mpi_lead()) return report;  // under MPI rank 0 writes the manifest, last
-
-  nlohmann::json episodes = nlohmann::json::array();
-  for (int i = 0; i < o.episodes; ++i) {
-    const MujocoEpisode m = read_mujoco_episode_meta(o.out + "/" + episode_file_name(i));
-    report.returns.push_back(m.episode_return);
-    episodes.push_back({{"file", episode_file_name(i)},
-                        {"seed", m.seed},
-                        {"outcome", m.outcome},
-                        {"return", m.episode_return}});
-  }
-  report.episodes = o.episodes;
-  nlohmann::json manifest = {{"env", o.env},
-                             {"seed", o.seed},
-                             {"episodes", episodes},
-                             {"width", o.width},
-                             {"height", o.height},
-                             {"max_steps", o.max_steps},
-                             {"noise", o.noise.enabled}};
-  write_file_atomic(o.out + "/collect.json", manifest.dump(2) + "\n");
+  // The manifest (collect.json): the folder's commit, by rank 0 while it holds the lock.
+  auto write_manifest = [&](const JobResult&) {
+    nlohmann::json episodes = nlohmann::json::array();
+    for (int i = 0; i < o.episodes; ++i) {
+      const MujocoEpisode m = read_mujoco_episode_meta(o.out + "/" + episode_file_name(i));
+      report.returns.push_back(m.episode_return);
+      episodes.push_back({{"file", episode_file_name(i)},
+                          {"seed", m.seed},
+                          {"outcome", m.outcome},
+                          {"return", m.episode_return}});
+    }
+    report.episodes = o.episodes;
+    nlohmann::json manifest = {{"env", o.env},
+                               {"seed", o.seed},
+                               {"episodes", episodes},
+                               {"width", o.width},
+                               {"height", o.height},
+                               {"max_steps", o.max_steps},
+                               {"noise", o.noise.enabled}};
+    write_file_atomic(o.out + "/collect.json", manifest.dump(2) + "\n");
+  };
+  const JobResult job = run_job(spec, write_manifest);
+  report.frames = job.units;
+  report.recorded_now = job.run_now;
+  report.seconds = job.seconds;
   return report;
 }
 

@@ -9,18 +9,15 @@
 #include <memory>
 #include <optional>
 
-#include "train/device.hpp"
+#include "device/device.hpp"
 #include "core/build_parts.hpp"
 #include "bench/runner.hpp"
 #include "collect/expert_episode.hpp"
 #include "bench/episode_files.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
-#include "core/progress.hpp"
 #include "core/rng.hpp"
-#include "core/mpi.hpp"
-#include "core/run_lock.hpp"
-#include "core/worker_pool.hpp"
+#include "core/job.hpp"
 #include "data/mujoco_episode.hpp"
 #include "datasets/episode_set.hpp"
 #include "inference/policy_runner.hpp"
@@ -263,37 +260,44 @@ double lag1_r2(const std::vector<std::vector<float>>& episodes, int A) {
 
 EvalReport evaluate(const EvalOptions& o) {
   require_mujoco("eval of a MuJoCo-Image run");
-  resolve_device(o.device, "eval.device");  // its one-line error before any worker
+  // Its one-line error before any worker; the device the run is on is part of its claim.
+  const std::string device = resolve_device(o.device, "eval.device");
   Checkpoint ck;
   validate(o, &ck);
   const std::string ep_dir = o.out + "/episodes";
-  const RunLock lock = lock_run_folder(o.out, "eval");
-  std::error_code ec;
-  fs::create_directories(ep_dir, ec);
-  if (ec) throw IoError("cannot create output folder " + ep_dir + ": " + ec.message());
-  remove_stale_temporaries(o.out);
-  remove_stale_temporaries(ep_dir);
   const json run = {{"agent", o.agent},
                     {"label", o.label.empty() ? o.agent : o.label},
                     {"env", o.env},
                     {"checkpoint", o.checkpoint},
                     {"seed", o.seed},
-                    {"max_steps", o.max_steps}};
-  claim_eval_folder(o.out, run, {"agent", "env", "checkpoint", "seed", "max_steps"});
-
+                    {"max_steps", o.max_steps},
+                    {"device", device}};
   std::vector<json> records(o.episodes);
-  std::vector<int> todo;
-  for (int i = 0; i < o.episodes; ++i) {
+  EvalReport report;
+  JobSpec spec;
+  spec.command = "eval";
+  spec.out = o.out;
+  spec.subfolders = {"episodes"};
+  // Folders written before the device was recorded ran on the CPU.
+  spec.claim = [&] {
+    claim_eval_folder(o.out, run, {"agent", "env", "checkpoint", "seed", "max_steps", "device"},
+                      [](json& prev) {
+                        if (!prev.contains("device")) prev["device"] = "cpu";
+                      });
+  };
+  spec.total = o.episodes;
+  spec.complete = [&](int i) {
     auto r = load_record(ep_dir + "/" + episode_record_name(i));
     if (r) records[i] = *r;
-    else todo.push_back(i);
-  }
-  EvalReport report;
-  const auto t0 = std::chrono::steady_clock::now();
-  const std::unique_ptr<Progress> progress = job_progress(
-      o.quiet, "eval " + o.agent + " on " + o.env, o.episodes, static_cast<long>(todo.size()));
+    return r.has_value();
+  };
+  spec.label = "eval " + o.agent + " on " + o.env;
+  spec.quiet = o.quiet;
+  spec.workers = std::max(1, o.workers);
+  spec.attempts = o.max_attempts;
+  spec.failure_what = "eval";
   // Each episode in a fresh fork: its env, GL context and networks are made there.
-  auto job = [&](int i) {
+  spec.run = [&](int i) {
     MujocoEpisode recording;
     const json r = run_episode(o, i, o.record ? &recording : nullptr);
     // The recording first: the record commits the episode.
@@ -301,70 +305,66 @@ EvalReport evaluate(const EvalOptions& o) {
     write_file_atomic(ep_dir + "/" + episode_record_name(i), r.dump() + "\n");
     return EpisodeNote{r.at("length").get<long>(), r.at("return").get<double>()}.encode();
   };
-  auto on_done = [&](int i, const std::string& note) {
+  spec.done = [](int i, const std::string& note, std::string* line) {
     const EpisodeNote n = EpisodeNote::decode(note);
-    report.steps += n.steps;
-    ++report.run_now;
-    if (progress) progress->advance(1, n.progress_line(i));
+    *line = n.progress_line(i);
+    return n.steps;
   };
-  const PoolReport pool =
-      run_worker_pool_with_retries(std::max(1, o.workers), todo, o.max_attempts, [] {}, job, on_done);
-  if (progress) progress->finish();
-  report.steps = mpi_sum(report.steps);  // the whole job's, under MPI
-  report.run_now = static_cast<int>(mpi_sum(report.run_now));
-  if (!pool.failed.empty())
-    throw_job_error("eval failed for " + std::to_string(pool.failed.size()) + " episode(s) (" +
-                    pool.first_error + "); rerun the same command to resume");
-  if (!mpi_lead()) return report;  // under MPI rank 0 writes the summary, last
-  for (int i : todo) {
-    auto r = load_record(ep_dir + "/" + episode_record_name(i));
-    if (!r) throw DataError("episode record " + episode_record_name(i) + " is missing after its run");
-    records[i] = *r;
-  }
-
-  json episodes = json::array();
-  std::vector<std::vector<float>> chosen;
-  double sum = 0, sum_len = 0;
-  for (const json& r : records) {
-    episodes.push_back({{"index", r.at("index")},
-                        {"seed", r.at("seed")},
-                        {"return", r.at("return")},
-                        {"length", r.at("length")},
-                        {"outcome", r.at("outcome")}});
-    sum += r.at("return").get<double>();
-    sum_len += r.at("length").get<int>();
-    std::vector<float> flat;
-    for (const auto& a : r.at("actions")) {
-      const auto v = a.get<std::vector<float>>();
-      flat.insert(flat.end(), v.begin(), v.end());
+  // results.json: the folder's commit, by rank 0 while it holds the lock.
+  auto write_results = [&](const JobResult& job) {
+    for (int i : job.todo) {
+      auto r = load_record(ep_dir + "/" + episode_record_name(i));
+      if (!r)
+        throw DataError("episode record " + episode_record_name(i) + " is missing after its run");
+      records[i] = *r;
     }
-    chosen.push_back(std::move(flat));
-  }
-  const double n = static_cast<double>(records.size());
-  const double mean = sum / n;
-  double var = 0;
-  for (const json& r : records) var += std::pow(r.at("return").get<double>() - mean, 2);
-  const double sd = records.size() > 1 ? std::sqrt(var / (n - 1)) : 0.0;
-  const int A = Env(o.env).action_dim();
-  json copycat = {
-      {"definition",
-       "R^2 of the least-squares linear prediction of a_t from a_{t-1} (a_t ~ W a_{t-1} + b, "
-       "pairs within episodes, pooled over components); policy: the actions it chose here, "
-       "expert data: the recorded labels of the checkpoint's training data"},
-      {"policy_r2", r2_json(lag1_r2(chosen, A))},
-      {"expert_data_r2", ck.data_dir.empty() ? json(nullptr)
-                                              : r2_json(lag1_r2(data_actions(ck.data_dir), A))}};
-  report.results = run;
-  report.results["episodes"] = episodes;
-  report.results["summary"] = {{"episodes", records.size()},
-                               {"mean_return", mean},
-                               {"std_return", sd},
-                               {"mean_length", sum_len / n},
-                               {"copycat_policy_r2", copycat["policy_r2"]},
-                               {"copycat_expert_r2", copycat["expert_data_r2"]}};
-  report.results["copycat"] = copycat;
-  write_file_atomic(o.out + "/results.json", report.results.dump(2) + "\n");
-  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    json episodes = json::array();
+    std::vector<std::vector<float>> chosen;
+    double sum = 0, sum_len = 0;
+    for (const json& r : records) {
+      episodes.push_back({{"index", r.at("index")},
+                          {"seed", r.at("seed")},
+                          {"return", r.at("return")},
+                          {"length", r.at("length")},
+                          {"outcome", r.at("outcome")}});
+      sum += r.at("return").get<double>();
+      sum_len += r.at("length").get<int>();
+      std::vector<float> flat;
+      for (const auto& a : r.at("actions")) {
+        const auto v = a.get<std::vector<float>>();
+        flat.insert(flat.end(), v.begin(), v.end());
+      }
+      chosen.push_back(std::move(flat));
+    }
+    const double n = static_cast<double>(records.size());
+    const double mean = sum / n;
+    double var = 0;
+    for (const json& r : records) var += std::pow(r.at("return").get<double>() - mean, 2);
+    const double sd = records.size() > 1 ? std::sqrt(var / (n - 1)) : 0.0;
+    const int A = Env(o.env).action_dim();
+    json copycat = {
+        {"definition",
+         "R^2 of the least-squares linear prediction of a_t from a_{t-1} (a_t ~ W a_{t-1} + b, "
+         "pairs within episodes, pooled over components); policy: the actions it chose here, "
+         "expert data: the recorded labels of the checkpoint's training data"},
+        {"policy_r2", r2_json(lag1_r2(chosen, A))},
+        {"expert_data_r2", ck.data_dir.empty() ? json(nullptr)
+                                                : r2_json(lag1_r2(data_actions(ck.data_dir), A))}};
+    report.results = run;
+    report.results["episodes"] = episodes;
+    report.results["summary"] = {{"episodes", records.size()},
+                                 {"mean_return", mean},
+                                 {"std_return", sd},
+                                 {"mean_length", sum_len / n},
+                                 {"copycat_policy_r2", copycat["policy_r2"]},
+                                 {"copycat_expert_r2", copycat["expert_data_r2"]}};
+    report.results["copycat"] = copycat;
+    write_file_atomic(o.out + "/results.json", report.results.dump(2) + "\n");
+  };
+  const JobResult job = run_job(spec, write_results);
+  report.steps = job.units;
+  report.run_now = job.run_now;
+  report.seconds = job.seconds;
   return report;
 }
 

@@ -14,7 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "train/device.hpp"
+#include "device/device.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/progress.hpp"

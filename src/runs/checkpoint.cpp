@@ -48,6 +48,7 @@ json checkpoint_to_json(const Checkpoint& c) {
     j["input"]["env"] = c.input.env;
   }
   if (!c.input.action_output.empty()) j["input"]["action_output"] = c.input.action_output;
+  if (!c.val_files.empty()) j["episodes"]["val_files"] = c.val_files;
   if (!c.method_record.is_null()) j["method_record"] = c.method_record;
   if (!c.runtime.is_null()) j["runtime"] = c.runtime;
   return j;
@@ -101,6 +102,8 @@ Checkpoint checkpoint_from_json(const json& j, const std::string& where) {
   c.val_samples = samples.get<long>("val");
   c.train_episodes = episodes.get<int>("train");
   c.val_episodes = episodes.get<int>("val");
+  if (f.at("episodes").contains("val_files"))
+    c.val_files = episodes.get<std::vector<std::string>>("val_files");
   c.device = f.get<std::string>("device");
   if (j.contains("runtime")) c.runtime = j.at("runtime");
   c.epochs_done = f.get<int>("epochs_done");

@@ -58,8 +58,11 @@ struct Checkpoint {
   std::string data_dir;     // absolute
   long train_samples = 0, val_samples = 0;
   int train_episodes = 0, val_episodes = 0;
+  // The validation episodes' file names (diagnose --split val compares exactly these); empty in
+  // runs made before they were recorded.
+  std::vector<std::string> val_files;
   std::string device;       // cpu | cuda, where it trained
-  // How it trained (train/device.hpp ComputeDevice::record: device, precision, deterministic,
+  // How it trained (device/device.hpp ComputeDevice::record: device, precision, deterministic,
   // threads, libtorch, CUDA) of the last session; null in runs made before it was recorded.
   nlohmann::json runtime;
   int epochs_done = 0;

@@ -52,7 +52,7 @@ struct DimRun {
   long train_samples = 0, val_samples = 0;
   int train_episodes = 0, val_episodes = 0;
   std::string device;
-  nlohmann::json runtime;  // train/device.hpp ComputeDevice::record; null in older runs
+  nlohmann::json runtime;  // device/device.hpp ComputeDevice::record; null in older runs
   std::vector<DimMember> members;  // dim.ensemble of them
 
   int finished_members() const;

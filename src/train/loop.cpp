@@ -120,7 +120,8 @@ LoopTotals train_epochs(Objective& objective, torch::optim::Optimizer& opt, cons
   LoopTotals totals;
   const ComputeDevice cpu;
   const ComputeDevice& dev = plan.device ? *plan.device : cpu;
-  const bool overlap = dev.name == "cuda";
+  const bool per_batch = plan.loss_reads == LoopPlan::LossReads::Batch ||
+                         (plan.loss_reads == LoopPlan::LossReads::Auto && dev.name != "cuda");
   set_learning_rate(opt, state.lr);
   const size_t B = static_cast<size_t>(plan.batch_size);
   for (int epoch = plan.first_epoch; epoch <= plan.last_epoch; ++epoch) {
@@ -135,17 +136,12 @@ LoopTotals train_epochs(Objective& objective, torch::optim::Optimizer& opt, cons
 
     objective.set_training(true);
     double loss_sum = 0;
-    // A batch's loss read (a sync on CUDA) and counted; on CUDA one batch late (LoopPlan).
-    std::optional<BatchLoss> pending;
-    int64_t pending_n = 0;
-    auto settle = [&](const BatchLoss& b, int64_t n) {
-      const double v = b.loss.item<double>();
-      loss_sum += v * static_cast<double>(n);
-      r.train_parts.resize(b.parts.size(), 0.0);
-      for (size_t k = 0; k < b.parts.size(); ++k)
-        r.train_parts[k] += b.parts[k].item<double>() * static_cast<double>(n);
-      if (plan.progress) plan.progress->advance(n, plan.note ? plan.note(epoch, v) : "");
-    };
+    // Per batch: each loss read and counted at once. Per epoch: n x loss summed in float64 where
+    // the loss lives (the same products and order as per batch), read once at the end.
+    torch::Tensor loss_acc;
+    std::vector<torch::Tensor> parts_acc;
+    double shown = 0;  // the loss the progress note shows
+    Clock::time_point last_read{};
     for (size_t begin = 0; begin < n_train; begin += B) {
       const int64_t n = std::min<int64_t>(plan.batch_size, static_cast<int64_t>(n_train - begin));
       BatchLoss b;
@@ -153,15 +149,34 @@ LoopTotals train_epochs(Objective& objective, torch::optim::Optimizer& opt, cons
         AutocastScope autocast(dev);
         b = objective.update(order.data() + begin, n, opt, plan.clip_grad_norm);
       }
-      if (!overlap) {
-        settle(b, n);
-        continue;
+      const double w = static_cast<double>(n);
+      r.train_parts.resize(b.parts.size(), 0.0);
+      if (per_batch) {
+        shown = b.loss.item<double>();
+        ++r.loss_reads;
+        loss_sum += shown * w;
+        for (size_t k = 0; k < b.parts.size(); ++k)
+          r.train_parts[k] += b.parts[k].item<double>() * w;
+      } else {
+        auto weighted = [&](const torch::Tensor& t) { return t.detach().to(torch::kFloat64) * w; };
+        loss_acc = loss_acc.defined() ? loss_acc + weighted(b.loss) : weighted(b.loss);
+        parts_acc.resize(b.parts.size());
+        for (size_t k = 0; k < b.parts.size(); ++k)
+          parts_acc[k] = parts_acc[k].defined() ? parts_acc[k] + weighted(b.parts[k])
+                                                : weighted(b.parts[k]);
+        if (plan.progress && seconds_since(last_read) >= 1.0) {
+          shown = b.loss.item<double>();
+          ++r.loss_reads;
+          last_read = Clock::now();
+        }
       }
-      if (pending) settle(*pending, pending_n);
-      pending = std::move(b);
-      pending_n = n;
+      if (plan.progress) plan.progress->advance(n, plan.note ? plan.note(epoch, shown) : "");
     }
-    if (pending) settle(*pending, pending_n);
+    if (loss_acc.defined()) {
+      loss_sum = loss_acc.item<double>();
+      ++r.loss_reads;
+      for (size_t k = 0; k < parts_acc.size(); ++k) r.train_parts[k] = parts_acc[k].item<double>();
+    }
     r.train_seconds = seconds_since(r.started);
     r.train_loss = loss_sum / static_cast<double>(n_train);
     for (double& p : r.train_parts) p /= static_cast<double>(n_train);

@@ -17,7 +17,7 @@
 #include <torch/torch.h>
 
 #include "runs/record.hpp"
-#include "train/device.hpp"
+#include "device/device.hpp"
 
 namespace cd {
 
@@ -62,10 +62,16 @@ struct LoopPlan {
   // loss of the last epoch that was). <= 0: every epoch up to last_epoch is trained.
   int stop_patience = 0;
   double stop_min_improvement = 0;
-  // Where the objective's tensors live: its precision (bf16 autocast) applies to every batch,
-  // and on CUDA a batch's loss is read after the next batch is queued, so that filling a batch
-  // on the CPU overlaps the GPU's step (nullptr: the CPU, float32).
+  // Where the objective's tensors live: its precision (bf16 autocast) applies to every batch
+  // (nullptr: the CPU, float32).
   const ComputeDevice* device = nullptr;
+  // When a batch's loss is read to the host, which on CUDA waits for every queued step:
+  // Batch: after each batch (the CPU, where a read costs nothing). Epoch: the losses are summed
+  // where they are and the sum is read once, at the epoch's end, plus at most one read a second
+  // for the progress note; nothing else waits for the GPU, so the CPU fills batch n+1 while the
+  // GPU runs batch n. Auto: Epoch on CUDA, Batch elsewhere. Both give the same mean.
+  enum class LossReads { Auto, Batch, Epoch };
+  LossReads loss_reads = LossReads::Auto;
   Progress* progress = nullptr;                            // advanced batch by batch
   std::function<std::string(int epoch, double loss)> note;  // its note after a batch
 };
@@ -91,6 +97,7 @@ struct EpochResult {
   double train_seconds = 0;         // of the training pass
   double samples_per_s = 0;         // of the training pass
   bool improved = false;            // this epoch is the new best (state.best_epoch)
+  int loss_reads = 0;               // reads of a training loss to the host (syncs on CUDA)
   std::chrono::steady_clock::time_point started;
   double selection() const { return val_loss.value_or(train_loss); }
   double seconds_since_start() const;
@@ -130,7 +137,7 @@ void set_learning_rate(torch::optim::Optimizer& opt, double lr);
 std::string epoch_note(int epoch, int epochs, const char* what, double value, int digits);
 
 // Where a run trains: train.device, train.precision and train.cuda_deterministic resolved
-// (train/device.hpp), torch's threads set to train.threads, and denormal floats flushed to zero
+// (device/device.hpp), torch's threads set to train.threads, and denormal floats flushed to zero
 // or kept (train.flush_denormals) on this thread and on every one of torch's intra-op threads
 // (threads they start later inherit it; a ConfigError where the CPU cannot flush them).
 ComputeDevice training_device(const TrainSettings& train);

@@ -65,5 +65,34 @@ TEST(HtmlReport, ReplaysTheFirstFailureOfEachKindOrTheEpisodesAsked) {
   EXPECT_EQ(pick_replays(runs, o).size(), 1u);
 }
 
+TEST(HtmlReport, AChartKeepsALongLabelWholeAndItsMarkupClosed) {
+  // The SVG was formatted into a 512-byte buffer: a bar whose label fills it lost its closing
+  // tags, and the page's markup with them.
+  TempDir dir("cdtest-html");
+  const std::string label(700, 'x');
+  nlohmann::json res = {{"agent", "bc-oh"},
+                        {"label", label},
+                        {"suite", "town-a-regular"},
+                        {"summary", {{"success_rate", 0.5}, {"collision_rate", 0.25},
+                                     {"inertia_rate", 0.0}, {"episodes", 4}}},
+                        {"episodes", nlohmann::json::array()}};
+  const std::string path = dir / "results.json";
+  test::write_text(path, res.dump());
+  const std::vector<RunResult> runs = {load_result(path)};
+  HtmlReportOptions o;
+  o.max_replays = 0;
+  const std::string page = render_html_report(runs, "", o);
+  size_t bars = 0, closed = 0;
+  for (size_t at = page.find("<rect x="); at != std::string::npos; at = page.find("<rect x=", at + 1))
+    if (page.find("data-series=", at) < page.find('>', at)) ++bars;
+  for (size_t at = page.find("</rect>"); at != std::string::npos; at = page.find("</rect>", at + 1))
+    ++closed;
+  EXPECT_EQ(bars, 3u) << "success, collision and inertia";
+  EXPECT_EQ(closed, bars) << "every bar is closed";
+  EXPECT_NE(page.find("data-label=\"" + label + "\""), std::string::npos) << "the label whole";
+  EXPECT_NE(page.find("<title>" + label + ", success: 50.0%"), std::string::npos);
+  EXPECT_NE(page.find("</svg></figure>"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace cd

@@ -1,5 +1,6 @@
 // The run folder's lock (core/run_lock): another holder refuses us with its line, a dead
-// holder's file is taken over and said, one process may nest, release leaves nothing behind.
+// holder's file is taken over and said, one process may nest, release marks the file released
+// (tests/core/test_run_lock_hosts.cpp: file systems without flock or with a node-local one).
 // Another job is simulated by a second open file description of the lock file with its own
 // flock, which conflicts with ours even inside this process.
 #include "core/run_lock.hpp"
@@ -14,6 +15,7 @@
 #include <gtest/gtest.h>
 
 #include "../support/test_support.hpp"
+#include "core/process.hpp"
 
 namespace cd {
 namespace {
@@ -86,7 +88,7 @@ TEST(RunLock, ALockFileWhoseHolderIsGoneIsTakenOverAndSaid) {
   EXPECT_NE(now.find("pid " + std::to_string(::getpid()) + "\n"), std::string::npos) << now;
 }
 
-TEST(RunLock, ReleaseRemovesTheFileAndAnEmptyFolderTheLockMade) {
+TEST(RunLock, ReleaseMarksTheFileReleasedAndRemovesAnEmptyFolderTheLockMade) {
   TempDir dir("cdtest-lock");
   const std::string fresh = dir / "a/fresh", kept = dir / "kept";
   fs::create_directories(kept);
@@ -94,18 +96,42 @@ TEST(RunLock, ReleaseRemovesTheFileAndAnEmptyFolderTheLockMade) {
     RunLock a = lock_run_folder(fresh, "collect");
     RunLock b = lock_run_folder(kept, "eval");
     EXPECT_TRUE(fs::exists(fresh + "/" + kRunLockName));
-    EXPECT_TRUE(fs::exists(kept + "/" + kRunLockName));
+    EXPECT_NE(test::read_text(kept + "/" + kRunLockName).find("state held\n"), std::string::npos);
   }
   EXPECT_FALSE(fs::exists(fresh)) << "a job that wrote nothing leaves no folder";
   EXPECT_TRUE(fs::exists(dir / "a"));
   EXPECT_TRUE(fs::exists(kept)) << "a folder that was there stays";
-  EXPECT_FALSE(fs::exists(kept + "/" + kRunLockName));
+  // The lock file of a folder that stays is never removed: a job that opened it meanwhile must
+  // not lock a file that no longer has the folder's name.
+  const std::string released = test::read_text(kept + "/" + kRunLockName);
+  EXPECT_NE(released.find("command eval\n"), std::string::npos) << released;
+  EXPECT_NE(released.find("state released\n"), std::string::npos) << released;
+  EXPECT_EQ(describe_lock_holder(released).rfind("eval (host ", 0), 0u);
   // A folder the lock made that holds output stays.
   {
     RunLock c = lock_run_folder(fresh, "collect");
     test::write_text(fresh + "/episode_000000.h5", "x");
   }
   EXPECT_TRUE(fs::exists(fresh + "/episode_000000.h5"));
+  // A released lock is taken at once, with nothing said.
+  testing::internal::CaptureStderr();
+  { RunLock again = lock_run_folder(kept, "eval"); }
+  EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+}
+
+TEST(RunLock, AHolderOnThisHostWhosePidIsGoneIsTakenOverAtOnce) {
+  TempDir dir("cdtest-lock");
+  const std::string run = dir / "run";
+  fs::create_directories(run);
+  test::write_text(run + "/" + kRunLockName,
+                   "command eval\nhost " + host_name() + "\npid 999999\nstarted "
+                   "2026-11-27T05:00:00Z\ntoken x\nbeat 7\nstate held\n");
+  testing::internal::CaptureStderr();
+  RunLock l = lock_run_folder(run, "train");
+  const std::string said = testing::internal::GetCapturedStderr();
+  EXPECT_NE(said.find("pid 999999, since 2026-11-27T05:00:00Z), which has ended"), std::string::npos)
+      << said;
+  EXPECT_EQ(said.find("waiting"), std::string::npos) << "no heartbeat to wait for: " << said;
 }
 
 TEST(RunLock, OneProcessNestsAndHoldsUntilTheLastRelease) {

@@ -19,7 +19,7 @@
 #include "datasets/episode_set.hpp"
 #include "inference/policy_runner.hpp"
 #include "runs/checkpoint.hpp"
-#include "train/device.hpp"
+#include "device/device.hpp"
 
 namespace cd {
 namespace {

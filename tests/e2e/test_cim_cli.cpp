@@ -120,7 +120,7 @@ TEST(CimCli, PipelineWritesEveryStageAndGrangerReproducesTheTests) {
   EXPECT_NE(r.out.find("trained cim"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("causes:"), std::string::npos) << r.out;
   EXPECT_EQ(test::list_dir(f.run),
-            (std::vector<std::string>{"causes.json", "granger.png", "predictor.pt",
+            (std::vector<std::string>{"causaldrive.lock", "causes.json", "granger.png", "predictor.pt",
                                       "predictor_metrics.jsonl", "run.json", "series.csv",
                                       "traversal.png", "vae.pt", "vae_metrics.jsonl"}));
   json run = read_json(f.run + "/run.json");

@@ -12,7 +12,7 @@
 #include "../support/fake_episodes.hpp"
 #include "../support/test_support.hpp"
 #include "core/build_parts.hpp"
-#include "train/device.hpp"
+#include "device/device.hpp"
 
 namespace cd {
 namespace {

@@ -126,8 +126,8 @@ TEST(Collect, WritesEpisodesWithTheDatasetLayout) {
   EXPECT_NE(r.out.find("recorded now: 2"), std::string::npos) << r.out;
 
   std::vector<std::string> names = test::list_dir(out);
-  EXPECT_EQ(names, (std::vector<std::string>{"collect.json", "episode_000000.h5",
-                                             "episode_000001.h5"}));
+  EXPECT_EQ(names, (std::vector<std::string>{"causaldrive.lock", "collect.json",
+                                             "episode_000000.h5", "episode_000001.h5"}));
   CommandResult py = test::run_python(kLayoutScript,
                                       {out + "/episode_000000.h5", out + "/episode_000001.h5"}, dir);
   EXPECT_TRUE(py.exited && py.exit_code == 0) << py.describe();
@@ -242,7 +242,7 @@ void expect_resume_after_kill(const std::string& extra) {
   EXPECT_TRUE(tmp_files(out).empty()) << "temporary files left after the resumed run";
   EXPECT_NE(resumed.err.find("taking over the lock of collect (host "), std::string::npos)
       << resumed.err;
-  EXPECT_FALSE(test::fs::exists(out + "/" + kRunLockName)) << "released at the end";
+  EXPECT_TRUE(test::lock_released(out)) << "released at the end";
 
   CommandResult whole = collect_cli(config, ref, kEpisodes, 1);
   ASSERT_TRUE(whole.exited && whole.exit_code == 0) << whole.describe();

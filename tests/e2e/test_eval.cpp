@@ -265,6 +265,25 @@ TEST(BenchEval, SensorIsRecordedTheExpertNeverSeesTheShiftAndFoldersDoNotMix) {
   EXPECT_EQ(test::split_lines(refused.err).size(), 1u) << refused.err;
   EXPECT_NE(refused.err.find("another evaluation (sensor"), std::string::npos) << refused.err;
 
+  // The device eval.device resolved to is part of the folder's claim: a folder begun on a GPU
+  // is not resumed on the CPU (its episodes would mix two devices); one written before the
+  // device was recorded counts as a CPU run.
+  EXPECT_EQ(ra["device"], "cpu");
+  nlohmann::json claim = read_json(dir / "clean/run.json");
+  EXPECT_EQ(claim["device"], "cpu");
+  claim["device"] = "cuda";
+  test::write_text(dir / "clean/run.json", claim.dump(2) + "\n");
+  auto other = test::run_cli(test::eval_args(clean, "expert", "", "quickstart", dir / "clean", 1));
+  EXPECT_EQ(other.exit_code, 1) << other.describe();
+  EXPECT_EQ(test::split_lines(other.err).size(), 1u) << other.err;
+  EXPECT_NE(other.err.find("another evaluation (device \"cuda\", now \"cpu\")"),
+            std::string::npos)
+      << other.err;
+  claim.erase("device");
+  test::write_text(dir / "clean/run.json", claim.dump(2) + "\n");
+  auto old = test::run_cli(test::eval_args(clean, "expert", "", "quickstart", dir / "clean", 1));
+  EXPECT_EQ(old.exit_code, 0) << old.describe();
+
   const std::string bad = test::write_test_config(dir, "empty", "\n[eval]\nsensor = \"rainy\"\n",
                                                   "bad.toml");
   auto r = test::run_cli(test::eval_args(bad, "expert", "", "quickstart", dir / "bad", 1));

@@ -70,7 +70,7 @@ std::map<std::string, std::string> tree_bytes(const std::string& root) {
   for (const auto& e : fs::recursive_directory_iterator(root)) {
     if (!e.is_regular_file()) continue;
     const std::string name = e.path().filename().string();
-    if (name.rfind(".crash-injected", 0) == 0) continue;
+    if (name.rfind(".crash-injected", 0) == 0 || name == kRunLockName) continue;
     out[fs::relative(e.path(), root).string()] = test::read_text(e.path().string());
   }
   return out;
@@ -143,6 +143,44 @@ TEST_F(MpiJobs, AFailingEpisodeIsNamedWithItsRankAndHost) {
   EXPECT_NE(why.find(std::string("rank 0 of 2 on ") + host + ": job 2: "), std::string::npos) << why;
 }
 
+TEST_F(MpiJobs, EachFailedEpisodeCarriesTheLineOfItsOwnRank) {
+  CD_NEEDS_SUMO();
+  const std::string cfg = test::write_test_config(dir);
+  // Episode 1 is rank 1's, episode 2 rank 0's (episodes 0..3 dealt over 2 ranks).
+  test::ScopedEnv crash("CAUSALDRIVE_INJECT_CRASH", "eval:1:always,eval:2:always");
+  auto r = mpirun(2, test::eval_args(cfg, "expert", "", "quickstart", dir / "out", 1));
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  const nlohmann::json res = test::read_json(dir / "out/results.json");
+  char host[256] = {0};
+  ::gethostname(host, sizeof host - 1);
+  for (int i : {1, 2}) {
+    EXPECT_EQ(res["episodes"][i]["outcome"], "infrastructure_failure");
+    const std::string why = res["episodes"][i]["failure"];
+    const std::string rank = i == 1 ? "rank 1 of 2 on " : "rank 0 of 2 on ";
+    EXPECT_EQ(why.rfind(rank + host + ": job " + std::to_string(i) + ": crashed with signal 9", 0),
+              0u)
+        << "episode " << i << ": " << why;
+  }
+  EXPECT_EQ(res["episodes"][0]["outcome"], "success");
+}
+
+TEST_F(MpiJobs, TheReasonOfAnErrorEveryRankMeetsIsPrintedOnceAndNoRankAborts) {
+  CD_NEEDS_SUMO();
+  // A folder held by another job: rank 0 meets it and tells the others, which end without
+  // MPI_Abort (it would race rank 0's line). Five times: a race shows.
+  const std::string cfg = test::write_test_config(dir);
+  RunLock held = lock_run_folder(dir / "held", "eval");
+  for (int k = 0; k < 5; ++k) {
+    auto r = mpirun(3, test::eval_args(cfg, "expert", "", "quickstart", dir / "held", 1));
+    EXPECT_FALSE(r.exited && r.exit_code == 0) << r.describe();
+    const std::string said = " is held by eval (host ";
+    ASSERT_NE(r.err.find(said), std::string::npos) << "run " << k << ": " << r.describe();
+    EXPECT_EQ(r.err.find(said), r.err.rfind(said)) << r.err;
+    EXPECT_NE(r.err.find("rank 0 of 3 on "), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find("MPI_ABORT"), std::string::npos) << "no rank aborts: " << r.err;
+  }
+}
+
 TEST_F(MpiJobs, MujocoCollectSpreadsTheSameWayAndAHeldFolderStopsEveryRank) {
   CD_NEEDS_MUJOCO();
   const std::vector<std::string> job = {"collect", "--env", "hopper", "--episodes", "3",
@@ -181,7 +219,7 @@ TEST(RunLockCli, ASecondEvalIntoAHeldFolderIsRefusedAndTheFirstRunsFilesStay) {
   const std::string cfg = test::write_test_config(dir);
   const std::string out = dir / "out";
   test::run_cli_ok(test::eval_args(cfg, "expert", "", "quickstart", out, 2));
-  EXPECT_FALSE(fs::exists(out + "/" + kRunLockName)) << "released at the end";
+  EXPECT_TRUE(test::lock_released(out)) << "released at the end";
   const auto before = tree_bytes(out);
   // This test process holds the folder as a running eval would (core/run_lock).
   RunLock held = lock_run_folder(out, "eval");
@@ -230,7 +268,7 @@ TEST(RunLockCli, AStaleLockOfADeadProcessIsTakenOverAndSaid) {
             std::string::npos)
       << r.err;
   EXPECT_TRUE(fs::exists(out + "/results.json"));
-  EXPECT_FALSE(fs::exists(out + "/" + kRunLockName));
+  EXPECT_TRUE(test::lock_released(out));
 }
 
 }  // namespace

@@ -31,7 +31,8 @@ TEST(Quickstart, RunsTheWholeChainAndResumes) {
   }
   EXPECT_TRUE(fs::exists(dir / "train/cim/causes.json"));
   EXPECT_TRUE(fs::exists(dir / "train/bc-oh/best.pt"));
-  EXPECT_EQ(test::list_dir(dir / "data").size(), 3u) << "2 episodes and collect.json";
+  EXPECT_EQ(test::list_dir(dir / "data").size(), 4u)
+      << "2 episodes, collect.json and the released lock";
   // The page beside the evaluations, its path printed; every evaluated episode recorded.
   EXPECT_NE(r.out.find("report: " + (dir / "report.html")), std::string::npos) << r.out;
   const std::string page = test::read_text(dir / "report.html");

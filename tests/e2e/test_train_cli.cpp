@@ -39,7 +39,7 @@ TEST(TrainCli, WritesTheCheckpointFolder) {
   ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
   EXPECT_NE(r.out.find("trained bc-oh"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("best epoch"), std::string::npos) << r.out;
-  EXPECT_EQ(test::list_dir(out), (std::vector<std::string>{"best.pt", "checkpoint.json",
+  EXPECT_EQ(test::list_dir(out), (std::vector<std::string>{"best.pt", "causaldrive.lock", "checkpoint.json",
                                                            "metrics.jsonl", "model.pt",
                                                            "optimizer.pt"}));
   json ck = json::parse(test::read_text(out + "/checkpoint.json"));
@@ -243,6 +243,28 @@ TEST(DiagnoseCli, ComparesThePolicyWithTheLabelsSituationBySituation) {
   const auto pngs = test::list_dir(plots);
   ASSERT_EQ(pngs.size(), 1u);  // the one validation episode
   EXPECT_TRUE(test::ends_with(pngs[0], ".png"));
+
+  // The run records its validation files, and the diagnosis compares those: a folder that grew
+  // (a fourth episode, the same count held out) gives the same episodes, not a new draw.
+  const json record = test::read_json(oh + "/checkpoint.json");
+  ASSERT_EQ(record["episodes"]["val_files"].size(), 1u) << record["episodes"].dump();
+  EXPECT_EQ(j["episodes"], record["episodes"]["val_files"]);
+  const std::string grown = dir / "grown", grown_run = dir / "grown-oh";
+  test::write_fake_folder(grown, 3, {.frames = 40, .situation_causes = true});
+  ASSERT_EQ(test::run_cli(train_args(config, "bc-oh", grown, grown_run)).exit_code, 0);
+  const json before = json::parse(test::run_cli({"diagnose", "--checkpoint", grown_run, "--data",
+                                                 grown, "--json"}).out);
+  test::fs::copy_file(grown + "/episode_000000.h5", grown + "/episode_000003.h5");
+  CommandResult after =
+      test::run_cli({"diagnose", "--checkpoint", grown_run, "--data", grown, "--json"});
+  ASSERT_EQ(after.exit_code, 0) << after.describe();
+  EXPECT_EQ(json::parse(after.out)["episodes"], before["episodes"]);
+  EXPECT_EQ(json::parse(after.out)["frames"], before["frames"]);
+  // A validation file that is gone is one line.
+  test::fs::remove(grown + "/" + before["episodes"][0].get<std::string>());
+  expect_one_line_error(
+      test::run_cli({"diagnose", "--checkpoint", grown_run, "--data", grown, "--json"}),
+      "no longer holds " + before["episodes"][0].get<std::string>());
 
   CommandResult every =
       test::run_cli({"diagnose", "--checkpoint", oh, "--data", data, "--split", "all", "--json"});

@@ -51,7 +51,8 @@ TEST_F(DimTest, NllDecreasesOnAToySet) {
   EXPECT_GT(truth, slow + 5.0);
   // Folder contents and metrics.jsonl.
   EXPECT_EQ(test::list_dir(dir / "run"),
-            (std::vector<std::string>{"dim.json", "member_0.pt", "metrics.jsonl"}));
+            (std::vector<std::string>{"causaldrive.lock", "dim.json", "member_0.pt", "metrics.jsonl"}))
+      << "the run and its released lock (core/run_lock)";
   EXPECT_EQ(test::split_lines(test::read_text(dir / "run/metrics.jsonl")).size(), 5u);
 }
 

@@ -2,6 +2,8 @@
 // by hand; the dataset's labels and previous actions in that space; a trained policy whose
 // runner decodes it (never both pedals), residual's memory-only controller adding its residual
 // in that space; and MuJoCo data refused.
+#include <cmath>
+
 #include <gtest/gtest.h>
 
 #include <torch/torch.h>
@@ -90,20 +92,23 @@ TEST(Pedals, ATrainedPolicyIsDecodedAndNeverPressesBoth) {
     EXPECT_LE(step.scalar(), 1.0);
   }
 
-  // residual's memory-only controller: a_t = a_{t-1} + its residual, in the signed space. The
-  // same frames behind two previous actions 0.2 apart give outputs 0.2 apart (where neither
-  // output is clamped at a pedal's zero: both are throttle here).
+  // residual's memory-only controller: a_t = a_{t-1} + its residual, in the signed space. Its
+  // residual for these frames, r, is read behind a previous action of 0; then two previous
+  // actions chosen so that both outputs lie inside (-1, 1), where nothing clamps them: r + 0.3
+  // and r + 0.5 from a_{t-1} = 0.3 (throttle) and 0.5, and r - 0.4 from a brake of 0.4 (-0.4).
   const std::string rc = train_signed(dir, "residual");
   PolicyRunner controller(rc);
   for (int k = 0; k < 3; ++k) set.planes255(0, 10 - (2 - k) * 2, frames[k].data());
-  const float gentle[2] = {0.5f, 0.0f}, harder[2] = {0.7f, 0.0f};
+  const float still[2] = {0.0f, 0.0f};
+  const double r = controller.run(ptr.data(), 0.0, 0, still).scalar();
+  ASSERT_LT(std::abs(r), 0.45) << "a residual this large leaves no unclamped range to test";
+  const float gentle[2] = {0.3f, 0.0f}, harder[2] = {0.5f, 0.0f}, braking[2] = {0.0f, 0.4f};
   const double a = controller.run(ptr.data(), 0.0, 0, gentle).scalar();
   const double b = controller.run(ptr.data(), 0.0, 0, harder).scalar();
-  if (a > 0 && b > 0) EXPECT_NEAR(b - a, 0.2, 1e-5);
-  // A brake of 0.4 is -0.4 in that space: 0.9 below the throttle of 0.5.
-  const float braking[2] = {0.0f, 0.4f};
   const double c = controller.run(ptr.data(), 0.0, 0, braking).scalar();
-  EXPECT_NEAR(a - c, 0.9, 1e-5);
+  EXPECT_NEAR(a, r + 0.3, 1e-5);
+  EXPECT_NEAR(b - a, 0.2, 1e-5);
+  EXPECT_NEAR(a - c, 0.7, 1e-5) << "a brake of 0.4 is -0.4: 0.7 below a throttle of 0.3";
 }
 
 TEST(Pedals, MujocoDataIsRefused) {

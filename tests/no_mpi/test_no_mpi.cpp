@@ -14,8 +14,9 @@ namespace {
 TEST(NoMpiBuild, RunsAsOneProcessAndRefusesSeveralRanks) {
   EXPECT_FALSE(mpi_compiled());
   ::unsetenv("OMPI_COMM_WORLD_SIZE");
-  ::unsetenv("PMIX_SIZE");
-  ::unsetenv("PMI_SIZE");
+  for (const char* var : {"PMIX_SIZE", "PMI_SIZE", "PMIX_RANK", "PMIX_NAMESPACE",
+                          "SLURM_STEP_NUM_TASKS", "SLURM_PROCID"})
+    ::unsetenv(var);
   {
     int argc = 1;
     char name[] = "causaldrive";
@@ -39,10 +40,25 @@ TEST(NoMpiBuild, RunsAsOneProcessAndRefusesSeveralRanks) {
     MpiSession session(&argc, &argv);
     ADD_FAILURE() << "three ranks of a build without MPI were not refused";
   } catch (const ConfigError& e) {
-    EXPECT_STREQ(e.what(), "started by mpirun with 3 ranks, but this build has no MPI (install "
+    EXPECT_STREQ(e.what(), "started by mpirun with 3 tasks, but this build has no MPI (install "
                            "libopenmpi-dev and rebuild)");
   }
   ::unsetenv("OMPI_COMM_WORLD_SIZE");
+  // srun --mpi=pmix sets no size variable: the step's task count says it.
+  ::setenv("PMIX_RANK", "0", 1);
+  ::setenv("SLURM_STEP_NUM_TASKS", "4", 1);
+  ::setenv("SLURM_PROCID", "0", 1);
+  try {
+    MpiSession session(&argc, &argv);
+    ADD_FAILURE() << "four srun tasks of a build without MPI were not refused";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("with 4 tasks, but this build has no MPI"),
+              std::string::npos)
+        << e.what();
+  }
+  ::unsetenv("PMIX_RANK");
+  ::unsetenv("SLURM_STEP_NUM_TASKS");
+  ::unsetenv("SLURM_PROCID");
 }
 
 }  // namespace

@@ -58,5 +58,43 @@ class PeerTest(unittest.TestCase):
         self.assertIn("bf16", r.stderr)
 
 
+class GpuCheckAgreementTest(unittest.TestCase):
+    """gpu_check.py's CPU-CUDA loss agreement: a difference over 1% is an error of the check
+    (its exit code), one within it is not."""
+
+    def load(self):
+        import importlib.util
+        import tempfile
+        out = tempfile.mkdtemp(prefix="cdtest-gpu-check.")
+        self.addCleanup(__import__("shutil").rmtree, out, True)
+        os.environ["OUT"] = out
+        try:
+            spec = importlib.util.spec_from_file_location(
+                "gpu_check", os.path.join(SOURCE, "scripts", "gpu_check.py"))
+            module = importlib.util.module_from_spec(spec)
+            spec.loader.exec_module(module)
+        finally:
+            del os.environ["OUT"]
+        return module
+
+    def test_a_disagreement_fails_the_check(self):
+        check = self.load()
+        far = check.agreement("small", 4096, 0.200, 0.210)  # 5% apart
+        self.assertFalse(far["within"])
+        self.assertAlmostEqual(far["relative_difference"], 0.05)
+        self.assertEqual(len(check.report["errors"]), 1)
+        self.assertIn("small", check.report["errors"][0])
+        self.assertIn("5.00%", check.report["errors"][0])
+        with self.assertRaises(SystemExit) as exit_:
+            check.finish(0 if not check.report["errors"] else 1)
+        self.assertEqual(exit_.exception.code, 1)
+
+    def test_an_agreement_within_one_percent_passes(self):
+        check = self.load()
+        near = check.agreement("resnet34", 512, 0.200, 0.2009)  # 0.45% apart
+        self.assertTrue(near["within"])
+        self.assertEqual(check.report["errors"], [])
+
+
 if __name__ == "__main__":
     unittest.main()

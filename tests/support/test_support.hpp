@@ -116,6 +116,12 @@ inline std::string read_text(const std::string& path) {
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
+// Whether a run folder's lock file says its job released it (core/run_lock never removes the
+// file of a folder that stays).
+inline bool lock_released(const std::string& dir) {
+  return read_text(dir + "/causaldrive.lock").find("\nstate released\n") != std::string::npos;
+}
+
 inline std::vector<std::string> split_lines(const std::string& text) {
   std::vector<std::string> lines;
   std::istringstream in(text);

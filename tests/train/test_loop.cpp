@@ -88,6 +88,50 @@ TEST(TrainLoop, TrainsOnTheEpochsRowsAndAveragesOverThem) {
   EXPECT_DOUBLE_EQ(results[0].train_loss, (6 * 4 * 5.0 + 1 * 2.0) / 25.0);
 }
 
+// A float loss with a part, of batch-dependent values (as a network's are).
+struct FloatObjective : Objective {
+  BatchLoss loss(bool, const uint32_t* rows, int64_t) override {
+    return {torch::tensor(static_cast<float>(rows[0]) / 7.0f), {}};
+  }
+  void set_training(bool) override {}
+  BatchLoss update(const uint32_t* rows, int64_t n, torch::optim::Optimizer&, double) override {
+    const float v = 0.1f + static_cast<float>(rows[0] % 5) / 3.0f + static_cast<float>(n) / 11.0f;
+    return {torch::tensor(v), {torch::tensor(v / 2.0f)}};
+  }
+};
+
+TEST(TrainLoop, LossesReadOncePerEpochGiveTheMeanOfReadingEachBatch) {
+  // On CUDA a read waits for the queued steps: LossReads::Epoch reads the epoch's sum once, so
+  // the CPU fills the next batch while the GPU runs; its mean must be the per-batch one's.
+  auto run = [](LoopPlan::LossReads reads) {
+    torch::Tensor w = torch::zeros({1}, torch::requires_grad());
+    torch::optim::Adam opt({w}, 1e-3);
+    FloatObjective objective;
+    LoopPlan plan = plan_of(10, 25);
+    plan.last_epoch = 2;
+    plan.loss_reads = reads;
+    LoopState state;
+    state.lr = 1e-3;
+    std::vector<EpochResult> results;
+    train_epochs(objective, opt, plan, state, [&](const EpochResult& r) { results.push_back(r); });
+    return results;
+  };
+  const std::vector<EpochResult> each = run(LoopPlan::LossReads::Batch);
+  const std::vector<EpochResult> once = run(LoopPlan::LossReads::Epoch);
+  const std::vector<EpochResult> cpu = run(LoopPlan::LossReads::Auto);
+  ASSERT_EQ(each.size(), 2u);
+  ASSERT_EQ(once.size(), 2u);
+  for (size_t e = 0; e < 2; ++e) {
+    EXPECT_EQ(each[e].loss_reads, 7) << "25 rows in batches of 4: 7 reads";
+    EXPECT_EQ(once[e].loss_reads, 1) << "one read at the epoch's end (no progress to feed)";
+    EXPECT_EQ(cpu[e].loss_reads, 7) << "Auto reads each batch on the CPU";
+    EXPECT_DOUBLE_EQ(once[e].train_loss, each[e].train_loss);
+    ASSERT_EQ(once[e].train_parts.size(), 1u);
+    EXPECT_DOUBLE_EQ(once[e].train_parts[0], each[e].train_parts[0]);
+    EXPECT_DOUBLE_EQ(cpu[e].train_loss, each[e].train_loss);
+  }
+}
+
 // Its loss (train and selection) follows a script, one value per epoch.
 struct ScriptedObjective : Objective {
   std::vector<double> losses;
