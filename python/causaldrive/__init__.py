@@ -78,7 +78,8 @@ class DrivingEnv(_Env):
     info: "causes" (the ground truth, by name), "expert_action" (the privileged expert's action
     at the current state, what collect records as the label; while the episode runs),
     "time_s", "progress_m", "route_length_m", "seed", "episode" (suites), and at the end
-    "outcome" (success, collision, inertia or timeout) and "episode_record" (as in eval's
+    "outcome" (success, collision, offroad, or the class of a timeout: stuck, restart_stall,
+    stopped_free, blocked, slow) and "episode_record" (as in eval's
     results.json).
     """
 

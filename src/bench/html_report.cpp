@@ -167,7 +167,7 @@ std::string charts_html(const std::vector<RunResult>& runs) {
     return bar_charts(table, {{"mean_return", "return", "#4e79a7"}}, 1.0, "", false);
   std::vector<Series> series = {{"success_rate", "success", "#59a14f"},
                                 {"collision_rate", "collision", "#e15759"},
-                                {"inertia_rate", "inertia", "#f28e2b"}};
+                                {"copycat_rate", "copycat", "#f28e2b"}};
   if (std::any_of(runs.begin(), runs.end(), [](const RunResult& r) { return steers_freely(r); }))
     series.push_back({"offroad_rate", "off-road", "#9c755f"});
   return bar_charts(table, series, 100.0, "%", true);
@@ -280,7 +280,9 @@ json replay_json(const RunResult& run, const ReplayPick& pick, const HtmlReportO
     r.update({{"dt", meta.dt}, {"steps", steps}, {"stride", stride}, {"series", list},
               {"causes", causes},
               {"mark", mark < 0 ? json(nullptr) : json(mark / stride)},
-              {"mark_label", pick.outcome == "inertia" ? "inertia starts" : pick.outcome}});
+              {"mark_label", pick.outcome == "collision" || pick.outcome == "offroad"
+                                 ? pick.outcome
+                                 : pick.outcome + ": the standstill starts"}});
   }
   r.update({{"frames", frames}, {"time", time}, {"step", shown}});
   return r;
@@ -423,10 +425,14 @@ long failure_step(const std::string& outcome, const std::vector<float>& speed,
   const long n = static_cast<long>(speed.size());
   if (n == 0) return -1;
   if (outcome == "collision" || outcome == "offroad") return n - 1;
-  if (outcome != "inertia") return -1;
+  // stuck (inertia in older records): the final stretch stood with the path free; the other
+  // classes of a standing end: the start of the final standstill.
+  const bool stuck = outcome == "stuck" || outcome == "inertia";
+  if (!stuck && outcome != "restart_stall" && outcome != "stopped_free" && outcome != "blocked")
+    return -1;
   long t = n;
   while (t > 0 && speed[static_cast<size_t>(t - 1)] < kStoppedSpeed &&
-         (path_free.empty() || path_free[static_cast<size_t>(t - 1)] > 0.5))
+         (!stuck || path_free.empty() || path_free[static_cast<size_t>(t - 1)] > 0.5))
     --t;
   return t < n ? t : n - 1;
 }
@@ -457,7 +463,8 @@ std::vector<ReplayPick> pick_replays(const std::vector<RunResult>& runs,
       }
       continue;
     }
-    for (const char* kind : {"collision", "inertia", "offroad"})
+    for (const char* kind :
+         {"collision", "stuck", "inertia", "restart_stall", "stopped_free", "offroad"})
       for (size_t i = 0; i < eps.size(); ++i)
         if (eps[i].value("outcome", "") == kind) {
           add(static_cast<int>(i));

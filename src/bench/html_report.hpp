@@ -1,7 +1,7 @@
 #pragma once
 // `causaldrive report --html OUT.html RUN...` (SPEC section 13): one self-contained page over
 // evaluation runs. It holds the tables `report` prints (the same Markdown, as HTML tables),
-// inline SVG charts of success / collision / inertia (and off-road for a free-steering ego)
+// inline SVG charts of success / collision / copycat (and off-road for a free-steering ego)
 // per agent and suite with the seeds' spread, and replays of chosen episodes: the frames the
 // agent saw (kept by `eval --record`), play / pause / step controls, the trace beside them
 // (speed, throttle, brake, steer, causes; MuJoCo-Image: the return so far and the actions) and
@@ -16,7 +16,7 @@ namespace cd {
 
 struct HtmlReportOptions {
   std::vector<int> episodes;  // replay these episode indices of every run; empty: the first
-                              // failure of each kind (collision, inertia, off-road) per driving
+                              // failure of each kind (collision, the copycat classes, off-road) per driving
                               // run, the lowest return per MuJoCo-Image run
   int max_frames = 300;       // per replay at most: a longer episode shows every k-th step
   int max_replays = 10;       // on the page at most, in the order of the runs
@@ -35,8 +35,9 @@ std::vector<ReplayPick> pick_replays(const std::vector<RunResult>& runs,
                                      const HtmlReportOptions& options);
 
 // The step at which a failure shows in a recorded episode: the last step for a collision or an
-// off-road end; for inertia the first step of the final stretch in which the ego stood
-// (speed < kStoppedSpeed) with a free path; -1 for any other outcome.
+// off-road end; for stuck (inertia in older records) the first step of the final stretch in
+// which the ego stood (speed < kStoppedSpeed) with a free path; for restart_stall, stopped_free
+// and blocked the first step of the final standstill; -1 for any other outcome.
 long failure_step(const std::string& outcome, const std::vector<float>& speed,
                   const std::vector<float>& path_free);
 

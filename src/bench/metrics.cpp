@@ -22,6 +22,36 @@ bool is_inertia(const std::vector<char>& stopped, const std::vector<char>& path_
   return true;
 }
 
+bool is_paper_inertia(const std::vector<char>& stopped, double dt) {
+  const size_t need = static_cast<size_t>(std::ceil(kInertiaSpan / dt - 1e-9));
+  if (need == 0 || stopped.size() < need) return false;
+  return std::all_of(stopped.end() - static_cast<long>(need), stopped.end(),
+                     [](char s) { return s != 0; });
+}
+
+const std::vector<std::string>& timeout_classes() {
+  static const std::vector<std::string> classes = {"stuck", "restart_stall", "stopped_free",
+                                                   "blocked", "slow"};
+  return classes;
+}
+
+bool is_copycat_class(const std::string& outcome) {
+  return outcome == "stuck" || outcome == "restart_stall" || outcome == "stopped_free";
+}
+
+std::string classify_timeout(const std::vector<char>& stopped, const std::vector<char>& path_free,
+                             const std::vector<StopGoEvent>& events, double dt) {
+  if (is_inertia(stopped, path_free, dt)) return "stuck";
+  if (stopped.empty() || !stopped.back()) return "slow";
+  if (!events.empty() && !events.back().started) return "restart_stall";
+  // The final standstill's first step: a stop made with the path free (not the start, where
+  // the agent took over a standing ego) is spontaneous.
+  size_t k = stopped.size();
+  while (k > 0 && stopped[k - 1]) --k;
+  if (k > 0 && k < path_free.size() && path_free[k]) return "stopped_free";
+  return "blocked";
+}
+
 void StopGoTracker::observe(double speed, bool path_free) {
   const double t = static_cast<double>(++step_) * dt_;
   const bool stopped = speed < kStoppedSpeed;
@@ -101,6 +131,18 @@ nlohmann::json episode_to_json(const EpisodeResult& e) {
   if (!e.collision_by.empty()) j["collision_by"] = e.collision_by;
   if (!e.failure.empty()) j["failure"] = e.failure;
   if (!e.agent.empty()) j["agent"] = e.agent;
+  if (e.has_taxonomy && e.outcome != "infrastructure_failure") {
+    auto opt = [](const std::optional<double>& x) {
+      return x ? nlohmann::json(*x) : nlohmann::json();
+    };
+    j["taxonomy"] = {{"last_free_change_s", opt(e.last_free_change_s)},
+                     {"last_stop_s", opt(e.last_stop_s)},
+                     {"last_stop_cause", e.last_stop_cause.empty()
+                                             ? nlohmann::json()
+                                             : nlohmann::json(e.last_stop_cause)},
+                     {"final_max_speed", e.final_max_speed},
+                     {"paper_inertia", e.paper_inertia}};
+  }
   return j;
 }
 
@@ -128,6 +170,18 @@ EpisodeResult episode_from_json(const nlohmann::json& j) {
     e.lane_invasions = j.value("lane_invasions", 0);
     e.lane_changes = j.value("lane_changes", 0);
     e.lateral_error_m = j.value("lateral_error_m", -1.0);
+    e.has_taxonomy = j.contains("taxonomy") || e.outcome == "infrastructure_failure";
+    if (j.contains("taxonomy")) {
+      const nlohmann::json& t = j.at("taxonomy");
+      auto opt = [&](const char* k) {
+        return t.at(k).is_null() ? std::optional<double>() : t.at(k).get<double>();
+      };
+      e.last_free_change_s = opt("last_free_change_s");
+      e.last_stop_s = opt("last_stop_s");
+      e.last_stop_cause = t.at("last_stop_cause").is_null() ? "" : t.at("last_stop_cause");
+      e.final_max_speed = t.at("final_max_speed").get<std::vector<double>>();
+      e.paper_inertia = t.at("paper_inertia").get<bool>();
+    }
     for (const auto& s : j.at("stop_go_events")) {
       StopGoEvent ev;
       ev.time_s = s.at("time_s").get<double>();
@@ -162,6 +216,9 @@ nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
   double km = 0, completion = 0, distance = 0, duration = 0;
   std::vector<double> delays;
   std::map<std::string, std::pair<double, long>> agent;  // numeric agent figures: sum, count
+  std::map<std::string, long> classes;  // the timeout classes (SPEC section 14)
+  for (const std::string& c : timeout_classes()) classes[c] = 0;
+  long paper_inertia = 0;
   for (const EpisodeResult& e : episodes) {
     if (e.outcome == "infrastructure_failure") {
       ++failures;
@@ -175,8 +232,12 @@ nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
       pedestrian_hits += e.collision_kind == "pedestrian";
       ego_struck += e.collision_by == "ego";
     }
-    inertia += e.outcome == "inertia";
-    timeout += e.outcome == "timeout";
+    // Records before the taxonomy: "inertia" is today's stuck, "timeout" any other class.
+    const std::string cls = e.outcome == "inertia" ? "stuck" : e.outcome;
+    if (classes.count(cls)) ++classes[cls];
+    inertia += cls == "stuck";
+    timeout += cls != "stuck" && (classes.count(cls) || cls == "timeout");
+    paper_inertia += e.paper_inertia;
     offroad += e.outcome == "offroad";
     wrong_way += e.wrong_way;
     invasions += e.lane_invasions;
@@ -209,17 +270,30 @@ nlohmann::json summarize(const std::vector<EpisodeResult>& episodes) {
           {"infrastructure_failures", failures},
           {"success_rate", rate(success)},
           {"collision_rate", rate(collision)},
+          // The taxonomy of timeouts (SPEC section 14): with success, collision and off-road
+          // they sum to 1. copycat = stuck + restart_stall + stopped_free.
+          {"stuck_rate", rate(classes["stuck"])},
+          {"restart_stall_rate", rate(classes["restart_stall"])},
+          {"stopped_free_rate", rate(classes["stopped_free"])},
+          {"blocked_rate", rate(classes["blocked"])},
+          {"slow_rate", rate(classes["slow"])},
+          {"copycat_rate",
+           rate(classes["stuck"] + classes["restart_stall"] + classes["stopped_free"])},
+          // inertia is the SPEC's rule of section 5 (the stuck class), timeout every other
+          // episode that ran out of time, as in the tables before the taxonomy.
           {"inertia_rate", rate(inertia)},
           {"timeout_rate", rate(timeout)},
           // Every episode that ran out of time, inertia included: seed 001's #TIMEOUT.
           {"time_limit_rate", rate(timeout + inertia)},
           {"error_rate", rate(collision + inertia)},
           // Collisions by kind and by who struck (records before the kinds existed have none),
-          // and seed 000's error: inertia + collisions with vehicles.
+          // and seed 000's inertia (stood the last 15 s, whatever the path) and error: its
+          // inertia + collisions with vehicles.
           {"vehicle_collision_rate", rate(vehicle_hits)},
           {"pedestrian_collision_rate", rate(pedestrian_hits)},
           {"ego_struck_collision_rate", rate(ego_struck)},
-          {"paper_error_rate", rate(inertia + vehicle_hits)},
+          {"paper_inertia_rate", rate(paper_inertia)},
+          {"paper_error_rate", rate(paper_inertia + vehicle_hits)},
           {"stop_go_events", events},
           {"stalls", stalls},
           {"stall_rate", events > 0 ? static_cast<double>(stalls) / events : 0.0},

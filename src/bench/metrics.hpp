@@ -21,6 +21,25 @@ double route_timeout_s(double route_length_m);
 // per step, dt apart, the last entries being the end of the episode.
 bool is_inertia(const std::vector<char>& stopped, const std::vector<char>& path_free, double dt);
 
+// Seed 000's inertia: the ego stood (below kStoppedSpeed) the whole last kInertiaSpan
+// seconds, whatever its path did.
+bool is_paper_inertia(const std::vector<char>& stopped, double dt);
+
+struct StopGoEvent;
+
+// The class of an episode that ran out of time (SPEC section 14), decided in this order:
+// "stuck" (is_inertia), "slow" (moving at the end), "restart_stall" (the last stop-and-go
+// event never started, whatever the path did afterwards), "stopped_free" (the final standstill
+// began with the path free: a spontaneous stop), "blocked" (it began behind a leader, a light,
+// a pedestrian or priority traffic, and no event of a freed path went unanswered). Per step,
+// dt apart, the last entries the end; `events` are the StopGoTracker's.
+std::string classify_timeout(const std::vector<char>& stopped, const std::vector<char>& path_free,
+                             const std::vector<StopGoEvent>& events, double dt);
+
+// The timeout classes, and copycat's share of them (stuck, restart_stall, stopped_free).
+const std::vector<std::string>& timeout_classes();
+bool is_copycat_class(const std::string& outcome);
+
 struct StopGoEvent {
   double time_s = 0;     // when the path became free with the ego stopped
   double delay_s = 0;    // until the ego exceeded kStoppedSpeed; censored at the episode's
@@ -58,7 +77,9 @@ struct EpisodeResult {
   int index = 0, task = 0, trial = 0;
   std::string scenario;
   uint64_t traffic_seed = 0;
-  std::string outcome;           // success | collision | offroad | inertia | timeout | infrastructure_failure
+  // success | collision | offroad | stuck | restart_stall | stopped_free | blocked | slow |
+  // infrastructure_failure (records before the taxonomy: inertia | timeout)
+  std::string outcome;
   std::string collided_with;
   std::string collision_kind;    // collisions: "vehicle" or "pedestrian"
   std::string collision_by;      // collisions: "ego" (the ego struck) or "other" (it was struck)
@@ -76,6 +97,16 @@ struct EpisodeResult {
   int lane_changes = 0;          // changes to a neighbouring lane of the same edge
   double lateral_error_m = -1;
   std::vector<StopGoEvent> events;
+  // What decides a timeout's class (results.json "taxonomy"): the time (s after the takeover)
+  // of the last change of the path's state and of the start of the final standstill (none
+  // while moving at the end), what held the path then (free, leader, red_light, pedestrian,
+  // yield, other), the highest speed of each of the last 15 seconds (oldest first), and seed
+  // 000's inertia. has_taxonomy is false for a record written before them.
+  bool has_taxonomy = true;
+  std::optional<double> last_free_change_s, last_stop_s;
+  std::string last_stop_cause;
+  std::vector<double> final_max_speed;
+  bool paper_inertia = false;
   nlohmann::json agent = nlohmann::json::object();  // the agent's episode_figures()
 
   double route_completion() const;

@@ -21,6 +21,7 @@
 #include "core/fault.hpp"
 #include "data/h5_episode.hpp"
 #include "core/job.hpp"
+#include "core/mpi.hpp"
 #include "methods/method.hpp"
 #include "sense/sensor_shift.hpp"
 #include "world/town.hpp"
@@ -143,6 +144,24 @@ EpisodeScorer::EpisodeScorer(const World& world, const Task& task, double dt)
   r_.route_length_m = task.route_length;
 }
 
+std::string path_cause(const GroundTruth& t) {
+  if (t.path_free) return "free";
+  const double reach = t.path_free_distance;
+  std::string cause = "other";
+  double nearest = reach;
+  auto consider = [&](bool present, double distance, const char* name) {
+    if (present && distance <= nearest) {
+      nearest = distance;
+      cause = name;
+    }
+  };
+  consider(t.lead_present, t.lead_distance, "leader");
+  consider(t.tl_state == kTlRed || t.tl_state == kTlYellow, t.tl_distance, "red_light");
+  consider(t.ped_on_path, t.ped_distance, "pedestrian");
+  consider(t.must_yield, t.yield_distance, "yield");
+  return cause;
+}
+
 void EpisodeScorer::observe(const World& world, const StepResult& sr) {
   count_junction_entry(r_, sr.entered_light);
   const double v = world.ego().speed;
@@ -150,6 +169,8 @@ void EpisodeScorer::observe(const World& world, const StepResult& sr) {
   tracker_.observe(v, pf);
   stopped_.push_back(v < kStoppedSpeed);
   free_path_.push_back(pf);
+  speed_.push_back(static_cast<float>(v));
+  cause_.push_back(path_cause(world.truth()));
 }
 
 EpisodeResult EpisodeScorer::finish(const World& world, const StepResult& last,
@@ -169,8 +190,31 @@ EpisodeResult EpisodeScorer::finish(const World& world, const StepResult& last,
       r.collision_by = last.ego_struck ? "ego" : "other";
       break;
     case Outcome::Offroad: r.outcome = "offroad"; break;
-    default: r.outcome = is_inertia(stopped_, free_path_, dt_) ? "inertia" : "timeout";
+    default: r.outcome = classify_timeout(stopped_, free_path_, r.events, dt_);
   }
+  // What decides the class (SPEC section 14), in the record. Step i ends at (i + 1) dt.
+  const size_t n = stopped_.size();
+  auto at_step = [&](size_t i) { return std::round(static_cast<double>(i + 1) * dt_ * 1e3) / 1e3; };
+  for (size_t i = n; i-- > 1;)
+    if (free_path_[i] != free_path_[i - 1]) {
+      r.last_free_change_s = at_step(i);
+      break;
+    }
+  if (n > 0 && stopped_.back()) {
+    size_t k = n;
+    while (k > 0 && stopped_[k - 1]) --k;
+    r.last_stop_s = at_step(k);
+    r.last_stop_cause = cause_[k];
+  }
+  const size_t per_second = std::max<size_t>(1, static_cast<size_t>(std::lround(1.0 / dt_)));
+  const size_t tail = std::min(n, per_second * static_cast<size_t>(kInertiaSpan));
+  for (size_t i = n - tail; i < n; i += per_second) {
+    float top = 0;
+    for (size_t j = i; j < std::min(n, i + per_second); ++j) top = std::max(top, speed_[j]);
+    r.final_max_speed.push_back(std::round(static_cast<double>(top) * 1000.0) / 1000.0);
+  }
+  r.paper_inertia = last.outcome != Outcome::Success && last.outcome != Outcome::Collision &&
+                    last.outcome != Outcome::Offroad && is_paper_inertia(stopped_, dt_);
   const WorldCounters& k = world.counters();
   r.wrong_way = k.wrong_way;
   r.lane_invasions = k.lane_invasions;
@@ -256,7 +300,13 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
   };
   spec.total = total;
   spec.complete = [&](int i) {
-    return load_record(ep_dir + "/" + episode_record_name(i), &results[i]);
+    if (!load_record(ep_dir + "/" + episode_record_name(i), &results[i])) return false;
+    // (Every rank reads the same records: every rank stops, rank 0 says it.)
+    if (!results[i].has_taxonomy)
+      throw_job_error(ep_dir + "/" + episode_record_name(i) +
+                      " was evaluated before the failure taxonomy (SPEC section 14): evaluate "
+                      "again into a new folder (causaldrive eval ... --out NEW_FOLDER)");
+    return true;
   };
   spec.label = "eval " + label + " on " + suite.name;
   spec.quiet = req.quiet;
@@ -343,15 +393,19 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
 
 std::string results_table(const nlohmann::json& res) {
   const nlohmann::json& s = res.at("summary");
-  auto pct = [&](const char* k) { return fmt("%.1f", 100.0 * s.at(k).get<double>()); };
+  auto pct = [&](const char* k) {
+    return s.contains(k) ? fmt("%.1f", 100.0 * s.at(k).get<double>()) : std::string("-");
+  };
   auto sec = [&](const char* k) {
     return s.at(k).is_null() ? std::string("-") : fmt("%.1f", s.at(k).get<double>());
   };
+  // The outcome columns sum to 100 % (SPEC section 14); copycat is three of them.
   std::ostringstream o;
-  o << "| agent | suite | episodes | success % | collision % | inertia % | timeout % | error % "
+  o << "| agent | suite | episodes | success % | collision % | off-road % | stuck % "
+       "| restart stall % | stopped free % | blocked % | slow % | copycat % "
        "| stop-go events | stall % | start delay median / p90 (s) | red lights / km "
        "| green light % | route completion % | mean speed (m/s) |\n";
-  o << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  o << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   const std::string sensor = res.value("sensor", "clean");
   o << "| " << res.at("label").get<std::string>() << " | " << res.at("suite").get<std::string>()
     << (sensor == "clean" ? "" : " (" + sensor + " sensor)") << " | "
@@ -359,7 +413,9 @@ std::string results_table(const nlohmann::json& res) {
   if (s.at("infrastructure_failures").get<long>() > 0)
     o << " (+" << s.at("infrastructure_failures").get<long>() << " failed)";
   o << " | " << pct("success_rate") << " | " << pct("collision_rate") << " | "
-    << pct("inertia_rate") << " | " << pct("timeout_rate") << " | " << pct("error_rate") << " | "
+    << pct("offroad_rate") << " | " << pct("stuck_rate") << " | " << pct("restart_stall_rate")
+    << " | " << pct("stopped_free_rate") << " | " << pct("blocked_rate") << " | "
+    << pct("slow_rate") << " | " << pct("copycat_rate") << " | "
     << s.at("stop_go_events").get<long>() << " | " << pct("stall_rate") << " | "
     << sec("start_delay_median_s") << " / " << sec("start_delay_p90_s") << " | "
     << fmt("%.2f", s.at("red_light_violations_per_km").get<double>()) << " | "

@@ -14,6 +14,7 @@
 #include "bench/episode_files.hpp"
 #include "bench/suite.hpp"
 #include "data/episode.hpp"
+#include "world/ground_truth.hpp"
 #include "world/world.hpp"
 
 namespace cd {
@@ -54,6 +55,11 @@ struct LoopStats {
 // What an episode's record says of the episode as it runs, for any loop that drives a World:
 // made after World::reset (and any prefill), told every step's result, then finished with the
 // last one (outcome, collisions, inertia against timeout, stop-go events, light passages).
+// What held the ego's path at a step: "free", or the nearest of "leader", "red_light",
+// "pedestrian", "yield" within the distance path_free checks; "other" when the path is not free
+// and none of them is that near (a gridlock's junction).
+std::string path_cause(const GroundTruth& truth);
+
 class EpisodeScorer {
  public:
   EpisodeScorer(const World& world, const Task& task, double dt);
@@ -65,6 +71,8 @@ class EpisodeScorer {
   double dt_, t0_;
   StopGoTracker tracker_;
   std::vector<char> stopped_, free_path_;
+  std::vector<float> speed_;
+  std::vector<std::string> cause_;  // what held the path at each step (path_cause)
   EpisodeResult r_;
 };
 

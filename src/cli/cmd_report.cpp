@@ -56,12 +56,12 @@ void add_report(CLI::App& app) {
       ->type_name("FILE");
   sub->add_option("--html", args->html,
                   "also write one self-contained HTML page: the tables, charts of success / "
-                  "collision / inertia per agent and suite, and replays of episodes recorded by "
+                  "collision / copycat per agent and suite, and replays of episodes recorded by "
                   "`eval --record`")
       ->type_name("FILE");
   sub->add_option("--episodes", args->episodes,
                   "with --html: replay these episode indices of every run (default: the first "
-                  "collision, inertia and off-road episode of each run)")
+                  "collision, copycat class and off-road episode of each run)")
       ->delimiter(',')
       ->type_name("I,J,...");
   sub->add_option("--replay-frames", args->replay_frames,

@@ -58,7 +58,7 @@ class DrivingEnv {
   bool started() const { return started_; }
   // The privileged expert's control at the current state (what collect records as the label).
   Control expert_action() const;
-  // The record of the finished episode (outcome, inertia or timeout, events), as in results.json.
+  // The record of the finished episode (outcome: success, collision, off-road or a timeout class; events), as in results.json.
   const EpisodeResult& result() const { return result_; }
 
   int episode() const { return episode_; }        // suite: the episode index; town: -1

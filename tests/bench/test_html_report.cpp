@@ -35,6 +35,11 @@ TEST(HtmlReport, TheFailuresStepIsTheCollisionOrTheStartOfTheLastFreeStandstill)
   EXPECT_EQ(failure_step("inertia", speed, path_free), 6);
   EXPECT_EQ(failure_step("success", speed, path_free), -1);
   EXPECT_EQ(failure_step("timeout", speed, path_free), -1);
+  EXPECT_EQ(failure_step("stuck", speed, path_free), failure_step("inertia", speed, path_free));
+  EXPECT_EQ(failure_step("slow", speed, path_free), -1);
+  // The other standing classes mark the whole final standstill, the path aside: from step 5.
+  EXPECT_EQ(failure_step("restart_stall", speed, path_free), 5);
+  EXPECT_EQ(failure_step("blocked", speed, path_free), 5);
   EXPECT_EQ(failure_step("collision", {}, {}), -1);
 }
 
@@ -74,7 +79,7 @@ TEST(HtmlReport, AChartKeepsALongLabelWholeAndItsMarkupClosed) {
                         {"label", label},
                         {"suite", "town-a-regular"},
                         {"summary", {{"success_rate", 0.5}, {"collision_rate", 0.25},
-                                     {"inertia_rate", 0.0}, {"episodes", 4}}},
+                                     {"copycat_rate", 0.0}, {"episodes", 4}}},
                         {"episodes", nlohmann::json::array()}};
   const std::string path = dir / "results.json";
   test::write_text(path, res.dump());
@@ -87,7 +92,7 @@ TEST(HtmlReport, AChartKeepsALongLabelWholeAndItsMarkupClosed) {
     if (page.find("data-series=", at) < page.find('>', at)) ++bars;
   for (size_t at = page.find("</rect>"); at != std::string::npos; at = page.find("</rect>", at + 1))
     ++closed;
-  EXPECT_EQ(bars, 3u) << "success, collision and inertia";
+  EXPECT_EQ(bars, 3u) << "success, collision and copycat";
   EXPECT_EQ(closed, bars) << "every bar is closed";
   EXPECT_NE(page.find("data-label=\"" + label + "\""), std::string::npos) << "the label whole";
   EXPECT_NE(page.find("<title>" + label + ", success: 50.0%"), std::string::npos);

@@ -46,6 +46,106 @@ void feed(StopGoTracker& t, double speed, bool free_path, double seconds) {
   for (int i = 0; i < static_cast<int>(std::lround(seconds / kDt)); ++i) t.observe(speed, free_path);
 }
 
+// A hand-made episode for the taxonomy: segments of (speed, path free, seconds), fed to the
+// tracker as the runner does; classify_timeout on what it saw.
+struct Segment {
+  double speed;
+  bool free;
+  double seconds;
+};
+std::string timeout_class_of(const std::vector<Segment>& segments, bool* paper = nullptr) {
+  StopGoTracker t(kDt);
+  std::vector<char> stopped, free_path;
+  for (const Segment& s : segments)
+    for (int i = 0; i < static_cast<int>(std::lround(s.seconds / kDt)); ++i) {
+      t.observe(s.speed, s.free);
+      stopped.push_back(s.speed < kStoppedSpeed);
+      free_path.push_back(s.free);
+    }
+  t.finish();
+  if (paper) *paper = is_paper_inertia(stopped, kDt);
+  return classify_timeout(stopped, free_path, t.events(), kDt);
+}
+
+TEST(BenchMetrics, TaxonomyPutsEachTimeoutInItsClass) {
+  bool paper = false;
+  // Driving, stopped on a free road for the last 20 s: stuck (the SPEC's inertia); seed 000's
+  // inertia too.
+  EXPECT_EQ(timeout_class_of({{8, true, 30}, {0, true, 20}}, &paper), "stuck");
+  EXPECT_TRUE(paper);
+  // At a red light, green for 8 s while it stood, red again for the last 12 s: it never
+  // restarted after the path freed. Not stuck (the last 15 s were not all free).
+  EXPECT_EQ(timeout_class_of({{8, true, 30}, {0, false, 10}, {0, true, 8}, {0, false, 12}},
+                             &paper),
+            "restart_stall");
+  EXPECT_TRUE(paper) << "seed 000's rule ignores the path";
+  // It stopped on a free road (a spontaneous stop: no event opens), then a light ahead turned
+  // red within its reach for the last 10 s.
+  EXPECT_EQ(timeout_class_of({{8, true, 30}, {0, true, 7}, {0, false, 10}}), "stopped_free");
+  // It stopped behind a leader that never moved on: blocked, however long.
+  EXPECT_EQ(timeout_class_of({{8, true, 30}, {0, false, 40}}, &paper), "blocked");
+  EXPECT_TRUE(paper);
+  // Freed for 3 s, blocked again before it should have gone (the event is dropped): blocked.
+  EXPECT_EQ(timeout_class_of({{8, true, 30}, {0, false, 10}, {0, true, 3}, {0, false, 10}}),
+            "blocked");
+  // Still moving at the end, too slowly: slow; not seed 000's inertia.
+  EXPECT_EQ(timeout_class_of({{8, true, 30}, {0, false, 10}, {1.0, true, 30}}, &paper), "slow");
+  EXPECT_FALSE(paper);
+  // A held start on a free path the agent never left: the start event never started.
+  EXPECT_EQ(timeout_class_of({{0, true, 4}, {0, false, 20}}), "blocked")
+      << "freed for 4 s only at the start, then blocked: it was right to wait";
+  EXPECT_EQ(timeout_class_of({{0, true, 8}, {0, false, 20}}), "restart_stall");
+  for (const std::string& c : timeout_classes())
+    EXPECT_EQ(is_copycat_class(c), c == "stuck" || c == "restart_stall" || c == "stopped_free")
+        << c;
+}
+
+TEST(BenchMetrics, TheClassesSumToOneAndCopycatIsThreeOfThem) {
+  std::vector<EpisodeResult> eps;
+  for (const char* o : {"success", "success", "collision", "stuck", "restart_stall",
+                        "restart_stall", "stopped_free", "blocked", "slow", "offroad"}) {
+    EpisodeResult e;
+    e.outcome = o;
+    e.paper_inertia = std::string(o) == "stuck" || std::string(o) == "blocked";
+    if (std::string(o) == "collision") e.collision_kind = "vehicle";
+    eps.push_back(e);
+  }
+  const nlohmann::json s = summarize(eps);
+  double sum = 0;
+  for (const char* k : {"success_rate", "collision_rate", "offroad_rate", "stuck_rate",
+                        "restart_stall_rate", "stopped_free_rate", "blocked_rate", "slow_rate"})
+    sum += s.at(k).get<double>();
+  EXPECT_DOUBLE_EQ(sum, 1.0);
+  EXPECT_DOUBLE_EQ(s["copycat_rate"].get<double>(), 0.4);
+  EXPECT_DOUBLE_EQ(s["restart_stall_rate"].get<double>(), 0.2);
+  EXPECT_DOUBLE_EQ(s["inertia_rate"].get<double>(), 0.1) << "the SPEC's inertia is stuck";
+  EXPECT_DOUBLE_EQ(s["timeout_rate"].get<double>(), 0.5) << "every other class";
+  EXPECT_DOUBLE_EQ(s["time_limit_rate"].get<double>(), 0.6);
+  EXPECT_DOUBLE_EQ(s["error_rate"].get<double>(), 0.2);
+  EXPECT_DOUBLE_EQ(s["paper_inertia_rate"].get<double>(), 0.2);
+  EXPECT_DOUBLE_EQ(s["paper_error_rate"].get<double>(), 0.3) << "paper inertia + vehicle hits";
+}
+
+TEST(BenchMetrics, ARecordWithoutTheTaxonomyIsKnownAsOld) {
+  EpisodeResult e;
+  e.outcome = "blocked";
+  e.last_stop_s = 12.5;
+  e.last_stop_cause = "leader";
+  e.final_max_speed = {0.1, 0.0};
+  e.paper_inertia = true;
+  nlohmann::json j = episode_to_json(e);
+  const EpisodeResult back = episode_from_json(j);
+  EXPECT_TRUE(back.has_taxonomy);
+  EXPECT_EQ(back.last_stop_cause, "leader");
+  EXPECT_DOUBLE_EQ(*back.last_stop_s, 12.5);
+  EXPECT_FALSE(back.last_free_change_s.has_value());
+  EXPECT_EQ(back.final_max_speed, (std::vector<double>{0.1, 0.0}));
+  EXPECT_TRUE(back.paper_inertia);
+  j.erase("taxonomy");
+  j["outcome"] = "inertia";
+  EXPECT_FALSE(episode_from_json(j).has_taxonomy);
+}
+
 TEST(BenchMetrics, StopGoEventTimesTheStartAfterThePathFrees) {
   StopGoTracker t(kDt);
   feed(t, 0.0, false, 3.0);  // waiting at a red light
@@ -152,6 +252,7 @@ TEST(BenchMetrics, CollisionKindsAndThePapersError) {
   const char* outcomes[] = {"inertia", "inertia", "collision", "collision",
                             "collision", "collision", "success", "timeout"};
   for (int i = 0; i < 8; ++i) eps[i].outcome = outcomes[i];
+  eps[0].paper_inertia = eps[1].paper_inertia = true;  // stood the last 15 s
   eps[2].collision_kind = "vehicle", eps[2].collision_by = "ego";
   eps[3].collision_kind = "vehicle", eps[3].collision_by = "other";
   eps[4].collision_kind = "pedestrian", eps[4].collision_by = "ego";
@@ -161,7 +262,7 @@ TEST(BenchMetrics, CollisionKindsAndThePapersError) {
   EXPECT_DOUBLE_EQ(s["pedestrian_collision_rate"].get<double>(), 1.0 / 8);
   EXPECT_DOUBLE_EQ(s["ego_struck_collision_rate"].get<double>(), 2.0 / 8);
   EXPECT_DOUBLE_EQ(s["error_rate"].get<double>(), 6.0 / 8);
-  // Seed 000's error: inertia + collisions with cars (pedestrians and unknown kinds out).
+  // Seed 000's error: its inertia + collisions with cars (pedestrians and unknown kinds out).
   EXPECT_DOUBLE_EQ(s["paper_error_rate"].get<double>(), 4.0 / 8);
   EpisodeResult back = episode_from_json(episode_to_json(eps[4]));
   EXPECT_EQ(back.collision_kind, "pedestrian");

@@ -39,14 +39,18 @@ class BrakeAgent : public Agent {
   Control act(const Observation&) override { return {0.0, 1.0}; }
 };
 
-TEST(BenchEpisode, StoppedWithAFreePathIsInertia) {
+TEST(BenchEpisode, StoppedWithAFreePathIsStuck) {
   Settings s = test_settings();
   World world(s);
   Task task = world.sample_scenario_task(11, "route", 150, 300);
   task.timeout_s = 20;
   BrakeAgent agent;
   EpisodeResult r = run_episode(world, agent, task, s);
-  EXPECT_EQ(r.outcome, "inertia");
+  EXPECT_EQ(r.outcome, "stuck");
+  EXPECT_TRUE(r.paper_inertia);
+  EXPECT_EQ(r.last_stop_cause, "free");
+  ASSERT_EQ(r.final_max_speed.size(), 15u);
+  for (double v : r.final_max_speed) EXPECT_LT(v, kStoppedSpeed);
   ASSERT_EQ(r.events.size(), 1u);  // the free path at the takeover, never taken
   EXPECT_EQ(r.events[0].kind, "start");
   EXPECT_FALSE(r.events[0].started);
@@ -54,7 +58,7 @@ TEST(BenchEpisode, StoppedWithAFreePathIsInertia) {
   EXPECT_NEAR(r.duration_s, 20.0 - s.eval.prefill_s, 0.11);
 }
 
-TEST(BenchEpisode, StoppedBehindAStoppedCarIsATimeout) {
+TEST(BenchEpisode, StoppedBehindAStoppedCarIsBlocked) {
   Settings s = test_settings();
   World world(s);
   Task task = world.sample_scenario_task(12, "leader", 150, 300);
@@ -62,11 +66,12 @@ TEST(BenchEpisode, StoppedBehindAStoppedCarIsATimeout) {
   task.timeout_s = 20;
   BrakeAgent agent;
   EpisodeResult r = run_episode(world, agent, task, s);
-  EXPECT_EQ(r.outcome, "timeout");
+  EXPECT_EQ(r.outcome, "blocked");
+  EXPECT_EQ(r.last_stop_cause, "leader");
   EXPECT_TRUE(r.events.empty());
 }
 
-TEST(BenchEpisode, StoppedAtRedIsATimeoutWithoutEvents) {
+TEST(BenchEpisode, StoppedAtRedIsBlockedWithoutEvents) {
   Settings s = test_settings();
   World world(s);
   Task task = world.sample_scenario_task(13, "red_light", 150, 300);
@@ -77,7 +82,9 @@ TEST(BenchEpisode, StoppedAtRedIsATimeoutWithoutEvents) {
   EXPECT_FALSE(world.truth().path_free);
   BrakeAgent agent;
   EpisodeResult r = run_episode(world, agent, task, s);
-  EXPECT_EQ(r.outcome, "timeout");
+  EXPECT_EQ(r.outcome, "blocked");
+  EXPECT_EQ(r.last_stop_cause, "red_light");
+  EXPECT_TRUE(r.paper_inertia) << "seed 000's rule: it stood the last 15 s";
   EXPECT_TRUE(r.events.empty());
 }
 
@@ -88,19 +95,20 @@ TEST(BenchEpisode, StandingUntilSumoTeleportsTheEgoEndsTheEpisodeWhereItStood) {
   Settings s = test_settings();
   World world(s);
   BrakeAgent agent;
-  // A free road: inertia when SUMO gives up on the ego.
+  // A free road: stuck when SUMO gives up on the ego.
   Task road = world.sample_scenario_task(11, "route", 150, 300);
   road.timeout_s = 300;
   EpisodeResult r = run_episode(world, agent, road, s);
-  EXPECT_EQ(r.outcome, "inertia");
+  EXPECT_EQ(r.outcome, "stuck");
   EXPECT_LT(r.duration_s, 95.0);
   EXPECT_LT(r.distance_m, 0.5);
   // First at a light that turns green and back to red while the ego stands: a stalled
-  // stop-and-go event that never started, and a timeout (the light blocks the last seconds).
+  // stop-and-go event that never started, a restart stall (the light blocks the last seconds,
+  // so it is not stuck).
   Task light = world.sample_scenario_task(13, "red_light", 150, 300);
   light.timeout_s = 300;
   r = run_episode(world, agent, light, s);
-  EXPECT_EQ(r.outcome, "timeout");
+  EXPECT_EQ(r.outcome, "restart_stall");
   EXPECT_LT(r.duration_s, 95.0);
   EXPECT_LT(r.distance_m, 0.5);
   ASSERT_EQ(r.events.size(), 1u);

@@ -284,6 +284,21 @@ TEST(BenchEval, SensorIsRecordedTheExpertNeverSeesTheShiftAndFoldersDoNotMix) {
   auto old = test::run_cli(test::eval_args(clean, "expert", "", "quickstart", dir / "clean", 1));
   EXPECT_EQ(old.exit_code, 0) << old.describe();
 
+  // Each episode record keeps what decides a timeout's class; a folder whose records predate
+  // the taxonomy (SPEC section 14) is not resumed: one line asks for a new folder.
+  nlohmann::json first = read_json(dir / "clean/episodes/episode_000000.json");
+  ASSERT_TRUE(first.contains("taxonomy")) << first.dump();
+  EXPECT_EQ(first["taxonomy"]["final_max_speed"].size(), 15u) << first.dump();
+  EXPECT_FALSE(first["taxonomy"]["paper_inertia"].get<bool>());
+  first.erase("taxonomy");
+  test::write_text(dir / "clean/episodes/episode_000000.json", first.dump() + "\n");
+  auto before = test::run_cli(test::eval_args(clean, "expert", "", "quickstart", dir / "clean", 1));
+  EXPECT_EQ(before.exit_code, 1) << before.describe();
+  EXPECT_EQ(test::split_lines(before.err).size(), 1u) << before.err;
+  EXPECT_NE(before.err.find("episode_000000.json was evaluated before the failure taxonomy"),
+            std::string::npos)
+      << before.err;
+
   const std::string bad = test::write_test_config(dir, "empty", "\n[eval]\nsensor = \"rainy\"\n",
                                                   "bad.toml");
   auto r = test::run_cli(test::eval_args(bad, "expert", "", "quickstart", dir / "bad", 1));

@@ -196,7 +196,8 @@ TEST(CimEval, TinyRunDrivesInTheSimulator) {
   EXPECT_NEAR(speed, distance / duration, 1e-9 * std::max(1.0, speed)) << ep.dump();
 
   // The summary is that one episode's.
-  for (const char* o : {"success", "collision", "inertia", "timeout"})
+  for (const char* o : {"success", "collision", "offroad", "stuck", "restart_stall",
+                        "stopped_free", "blocked", "slow"})
     EXPECT_DOUBLE_EQ(sum[std::string(o) + "_rate"].get<double>(), ep["outcome"] == o ? 1.0 : 0.0)
         << o;
   EXPECT_DOUBLE_EQ(sum["route_completion"].get<double>(), completion);
