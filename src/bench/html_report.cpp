@@ -125,21 +125,26 @@ std::string bar_charts(const ReportTable& table, const std::vector<Series>& seri
         if (!st || st->n == 0) continue;
         const double v = st->mean * scale, sd = st->std.value_or(0) * std::abs(scale);
         const double h = plot_h * std::max(0.0, v) / top, x = x0 + bar * static_cast<double>(k);
-        o << format(
-                      "<rect x=\"%.1f\" y=\"%.1f\" width=\"%.0f\" height=\"%.1f\" fill=\"%s\" "
-                      "data-series=\"%s\" data-label=\"%s\" data-value=\"%.4g\"><title>%s, %s: "
-                      "%.1f%s (sd %.1f, n %d)</title></rect>\n",
-                      x, top_pad + plot_h - h, bar - 2, h, series[k].colour.c_str(),
-                      series[k].key.c_str(), escape(labels[g]).c_str(), v,
-                      escape(labels[g]).c_str(), series[k].name.c_str(), v, unit.c_str(), sd,
-                      st->n);
-        if (st->std) {
-          const double y1 = top_pad + plot_h - plot_h * std::max(0.0, v - sd) / top;
-          const double y2 = top_pad + plot_h - plot_h * std::min(top, v + sd) / top;
+        // The whisker: the rate's 95% interval where the runs give one (report's cells), else
+        // +- one sd over seeds.
+        const bool interval = st->interval.has_value();
+        const double lo = interval ? st->interval->lo * scale : v - sd;
+        const double hi = interval ? st->interval->hi * scale : v + sd;
+        const std::string spread =
+            interval ? format("95%% [%.1f, %.1f]", lo, hi) : format("sd %.1f", sd);
+        o << format("<rect x=\"%.1f\" y=\"%.1f\" width=\"%.0f\" height=\"%.1f\" fill=\"%s\" "
+                    "data-series=\"%s\" data-label=\"%s\" data-value=\"%.4g\"><title>%s, %s: "
+                    "%.1f%s (%s, n %d)</title></rect>\n",
+                    x, top_pad + plot_h - h, bar - 2, h, series[k].colour.c_str(),
+                    series[k].key.c_str(), escape(labels[g]).c_str(), v,
+                    escape(labels[g]).c_str(), series[k].name.c_str(), v, unit.c_str(),
+                    spread.c_str(), st->n);
+        if (interval || st->std) {
+          const double y1 = top_pad + plot_h - plot_h * std::max(0.0, lo) / top;
+          const double y2 = top_pad + plot_h - plot_h * std::min(top, hi) / top;
           const double cx = x + (bar - 2) / 2;
-          o << format(
-                        "<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" class=\"sd\"/>\n",
-                        cx, cx, y1, y2);
+          o << format("<line x1=\"%.1f\" x2=\"%.1f\" y1=\"%.1f\" y2=\"%.1f\" class=\"%s\"/>\n", cx,
+                      cx, y1, y2, interval ? "ci" : "sd");
         }
       }
       o << format(
@@ -298,7 +303,7 @@ table.metrics th:first-child, table.metrics td:first-child { text-align: left; }
 table.metrics th { background: #f3f3f3; }
 figure.chart { display: inline-block; margin: 0 1.5em 1em 0; }
 figcaption { font-weight: 600; font-size: 0.9em; }
-svg .grid { stroke: #e5e5e5; } svg .sd { stroke: #222; stroke-width: 1.5; }
+svg .grid { stroke: #e5e5e5; } svg .sd, svg .ci { stroke: #222; stroke-width: 1.5; }
 svg .tick { font-size: 10px; text-anchor: end; fill: #666; }
 svg .group { font-size: 11px; text-anchor: middle; } svg .legend { font-size: 11px; }
 section.replay { border: 1px solid #ccc; padding: 0.8em; margin: 1em 0; }

@@ -6,11 +6,13 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <map>
 #include <set>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
 
+#include "bench/metrics.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 
@@ -91,10 +93,14 @@ std::string format_number(double v, const char* fmt) {
   return buf;
 }
 
-std::string format_cell(const std::optional<CellStats>& s, const Metric& m) {
+std::string format_cell(const std::optional<CellStats>& s, const Metric& m, Spread spread) {
   if (!s) return kMissingCell;
   if (s->n == 0) return kNoValue;
   const std::string fmt = "%." + std::to_string(m.decimals) + "f";
+  if (s->interval && spread == Spread::interval)
+    return format_number(m.scale * s->interval->mean, fmt.c_str()) + " [" +
+           format_number(m.scale * s->interval->lo, fmt.c_str()) + ", " +
+           format_number(m.scale * s->interval->hi, fmt.c_str()) + "]";
   std::string text = format_number(m.scale * s->mean, fmt.c_str());
   if (s->std) {
     text += " \u00b1 ";
@@ -122,7 +128,7 @@ ReportTable group_runs(const std::vector<const RunResult*>& runs, ColumnOf colum
 
 // One table of `set` over `table`'s columns, under "## title".
 std::string render_set_table(const ReportTable& table, const MetricSet& set,
-                             const std::string& title) {
+                             const std::string& title, Spread spread) {
   // Rows of cells: header first, then one per label.
   std::vector<std::vector<std::string>> rows;
   std::vector<std::string> header = {"label"};
@@ -132,7 +138,8 @@ std::string render_set_table(const ReportTable& table, const MetricSet& set,
   for (const auto& label : table.labels) {
     std::vector<std::string> row = {markdown_escape(label)};
     for (const auto& suite : table.suites)
-      for (const auto& m : set.metrics) row.push_back(format_cell(table.stats(label, suite, m.key), m));
+      for (const auto& m : set.metrics)
+        row.push_back(format_cell(table.stats(label, suite, m.key), m, spread));
     rows.push_back(row);
   }
   std::vector<size_t> width(header.size(), 3);
@@ -149,6 +156,13 @@ std::string render_set_table(const ReportTable& table, const MetricSet& set,
     return s + "\n";
   };
   std::string out = "## " + title + "\n\n";
+  bool any_interval = false;
+  for (size_t i = 1; i < rows.size(); ++i)
+    for (size_t c = 1; c < rows[i].size(); ++c)
+      any_interval = any_interval || rows[i][c].find(" [") != std::string::npos;
+  if (any_interval)
+    out += "Rates of episodes: mean [95% interval over training seeds and their episodes]; the "
+           "rest mean \u00b1 sd over seeds.\n\n";
   out += line(rows[0]);
   std::string rule = "|";
   for (size_t c = 0; c < width.size(); ++c) {
@@ -352,6 +366,19 @@ RunResult load_result(const std::string& path) {
       throw DataError(path + ": key '" + key + "' must be a non-empty string");
     *field = it->get<std::string>();
   }
+  if (auto eps = doc.find("episodes"); eps != doc.end() && eps->is_array()) {
+    for (const nlohmann::json& e : *eps) {
+      if (!e.is_object()) throw DataError(path + ": an entry of 'episodes' is not an object");
+      RunEpisode ep;
+      ep.task = e.value("task", e.value("index", 0));
+      ep.outcome = e.value("outcome", "");
+      ep.collision_kind = e.value("collision_kind", "");
+      if (auto t = e.find("taxonomy"); t != e.end() && t->is_object())
+        ep.paper_inertia = t->value("paper_inertia", false);
+      if (auto r = e.find("return"); r != e.end() && r->is_number()) ep.ret = r->get<double>();
+      r.episodes.push_back(ep);
+    }
+  }
   auto summary = doc.find("summary");
   if (summary == doc.end())
     throw DataError(path + ": missing key 'summary' (expected a results.json written by "
@@ -372,6 +399,79 @@ RunResult load_result(const std::string& path) {
     }
   }
   return r;
+}
+
+EpisodeIndicator episode_indicator(const std::string& key) {
+  static const std::map<std::string, EpisodeIndicator> indicators = {
+      {"success_rate", [](const RunEpisode& e) { return e.outcome == "success"; }},
+      {"collision_rate", [](const RunEpisode& e) { return e.outcome == "collision"; }},
+      {"offroad_rate", [](const RunEpisode& e) { return e.outcome == "offroad"; }},
+      {"stuck_rate", [](const RunEpisode& e) { return e.outcome == "stuck" || e.outcome == "inertia"; }},
+      {"inertia_rate", [](const RunEpisode& e) { return e.outcome == "stuck" || e.outcome == "inertia"; }},
+      {"restart_stall_rate", [](const RunEpisode& e) { return e.outcome == "restart_stall"; }},
+      {"stopped_free_rate", [](const RunEpisode& e) { return e.outcome == "stopped_free"; }},
+      {"blocked_rate", [](const RunEpisode& e) { return e.outcome == "blocked"; }},
+      {"slow_rate", [](const RunEpisode& e) { return e.outcome == "slow"; }},
+      {"copycat_rate", [](const RunEpisode& e) { return is_copycat_class(e.outcome) || e.outcome == "inertia"; }},
+      {"timeout_rate",
+       [](const RunEpisode& e) {
+         return e.outcome == "timeout" || e.outcome == "restart_stall" ||
+                e.outcome == "stopped_free" || e.outcome == "blocked" || e.outcome == "slow";
+       }},
+      {"time_limit_rate",
+       [](const RunEpisode& e) {
+         return e.outcome == "timeout" || e.outcome == "inertia" ||
+                std::find(timeout_classes().begin(), timeout_classes().end(), e.outcome) !=
+                    timeout_classes().end();
+       }},
+      {"error_rate",
+       [](const RunEpisode& e) {
+         return e.outcome == "collision" || e.outcome == "stuck" || e.outcome == "inertia";
+       }},
+      {"vehicle_collision_rate",
+       [](const RunEpisode& e) { return e.outcome == "collision" && e.collision_kind == "vehicle"; }},
+      {"pedestrian_collision_rate",
+       [](const RunEpisode& e) { return e.outcome == "collision" && e.collision_kind == "pedestrian"; }},
+      {"paper_inertia_rate", [](const RunEpisode& e) { return e.paper_inertia; }},
+      {"paper_error_rate",
+       [](const RunEpisode& e) {
+         return e.paper_inertia || (e.outcome == "collision" && e.collision_kind == "vehicle");
+       }},
+  };
+  auto it = indicators.find(key);
+  return it == indicators.end() ? nullptr : it->second;
+}
+
+std::optional<SeedRuns> seed_runs(const std::vector<const RunResult*>& runs,
+                                  const std::string& key) {
+  const EpisodeIndicator counts = episode_indicator(key);
+  if (!counts || runs.empty()) return std::nullopt;
+  SeedRuns seeds;
+  for (const RunResult* r : runs) {
+    if (r->mujoco || r->episodes.empty()) return std::nullopt;
+    // The episodes must be the ones its summary counts.
+    auto counted = r->summary.find("episodes");
+    if (counted == r->summary.end() || !counted->second ||
+        *counted->second != static_cast<double>(r->episodes.size()))
+      return std::nullopt;
+    std::map<int, std::pair<double, int>> by_task;  // task -> (count, trials)
+    for (const RunEpisode& e : r->episodes) {
+      if (e.outcome.empty() || e.outcome == "infrastructure_failure") return std::nullopt;
+      auto& [hits, trials] = by_task[e.task];
+      hits += counts(e) ? 1.0 : 0.0;
+      ++trials;
+    }
+    SeedOutcomes seed;
+    seed.trials = by_task.begin()->second.second;
+    for (const auto& [task, ht] : by_task) {
+      if (ht.second != seed.trials) return std::nullopt;
+      seed.per_task.push_back(ht.first / ht.second);
+    }
+    if (!seeds.empty() && seeds.front().per_task.size() != seed.per_task.size())
+      return std::nullopt;
+    seeds.push_back(std::move(seed));
+  }
+  return seeds;
 }
 
 CellStats mean_std(const std::vector<double>& values) {
@@ -398,7 +498,10 @@ std::optional<CellStats> ReportTable::stats(const std::string& label, const std:
     auto v = r->summary.find(key);
     if (v != r->summary.end() && v->second) values.push_back(*v->second);
   }
-  return mean_std(values);
+  CellStats stats = mean_std(values);
+  if (std::optional<SeedRuns> seeds = seed_runs(it->second, key))
+    stats.interval = rate_interval(*seeds);
+  return stats;
 }
 
 ReportTable build_report(const std::vector<RunResult>& runs) {
@@ -423,12 +526,13 @@ ReportTable condition_table(const ReportTable& table, const FailureCondition& co
   return t;
 }
 
-std::string render_markdown(const ReportTable& table, const std::vector<MetricSet>& sets) {
+std::string render_markdown(const ReportTable& table, const std::vector<MetricSet>& sets,
+                            Spread spread) {
   std::string out;
   for (const MetricSet& set : sets) {
     if (!out.empty()) out += '\n';  // a blank line between tables
     if (!set.by_condition) {
-      out += render_set_table(table, set, set.title);
+      out += render_set_table(table, set, set.title, spread);
       continue;
     }
     std::string names, tables;
@@ -439,7 +543,8 @@ std::string render_markdown(const ReportTable& table, const std::vector<MetricSe
       if (!tables.empty()) tables += '\n';
       tables += render_set_table(t, set,
                                  set.title + ", " + c.name + " (" + c.town + ", " + c.sensor +
-                                     " sensor; %, mean \u00b1 sd over seeds)");
+                                     " sensor; %, mean \u00b1 sd over seeds)",
+                                 spread);
     }
     out += tables.empty() ? "## " + set.title + "\n\nno run in any condition: " + names + "\n"
                           : tables;
@@ -467,6 +572,151 @@ std::string render_csv(const ReportTable& table, const std::vector<MetricSet>& s
         out += '\n';
       }
   return out;
+}
+
+namespace {
+
+// The k-th run of `label` in each column where it has episodes, as seeds x tasks of `key`.
+std::map<std::string, SeedRuns> runs_by_column(const ReportTable& table, const std::string& label,
+                                               const std::string& key) {
+  std::map<std::string, SeedRuns> out;
+  for (const std::string& column : table.suites) {
+    auto it = table.cells.find({label, column});
+    if (it == table.cells.end()) continue;
+    if (std::optional<SeedRuns> seeds = seed_runs(it->second, key)) out[column] = *seeds;
+  }
+  return out;
+}
+
+std::string pct(double v) { return format_number(100.0 * v, "%.1f"); }
+
+nlohmann::json comparison_json(const Comparison& c) {
+  return {{"difference", c.difference}, {"lo", c.lo},   {"hi", c.hi},
+          {"p_improvement", c.p_improvement}, {"verdict", verdict_text(c.verdict)},
+          {"episode_only", c.episode_only}};
+}
+
+}  // namespace
+
+ComparisonReport render_comparison(const ReportTable& table, const std::string& a,
+                                   const std::string& b, const std::string& key) {
+  for (const std::string& label : {a, b})
+    if (std::find(table.labels.begin(), table.labels.end(), label) == table.labels.end())
+      throw ConfigError("--compare: no run is labelled '" + label + "' (labels: " +
+                        [&] {
+                          std::string all;
+                          for (const auto& l : table.labels) all += (all.empty() ? "" : ", ") + l;
+                          return all;
+                        }() + ")");
+  if (!episode_indicator(key))
+    throw ConfigError("--compare-metric: '" + key + "' is not a share of episodes (e.g. "
+                      "success_rate, collision_rate, copycat_rate)");
+  const auto ra = runs_by_column(table, a, key), rb = runs_by_column(table, b, key);
+  std::vector<SeedRuns> all_a, all_b;
+  std::string md = "## " + a + " vs " + b + ": " + key + " (A - B in points, paired 95% "
+                   "interval; P(A > B) as rliable)\n\n| condition | A | B | A - B [95%] | "
+                   "P(A > B) | verdict |\n|---|---:|---:|---:|---:|---|\n";
+  nlohmann::json conditions = nlohmann::json::array();
+  for (const auto& [column, sa] : ra) {
+    auto jt = rb.find(column);
+    if (jt == rb.end() || sa.front().per_task.size() != jt->second.front().per_task.size())
+      continue;
+    const Comparison c = compare(sa, jt->second);
+    const Interval ia = rate_interval(sa), ib = rate_interval(jt->second);
+    md += "| " + column + " | " + pct(ia.mean) + " | " + pct(ib.mean) + " | " +
+          pct(c.difference) + " [" + pct(c.lo) + ", " + pct(c.hi) + "] | " +
+          format_number(c.p_improvement, "%.2f") + " | " + verdict_text(c.verdict) + " |\n";
+    nlohmann::json j = comparison_json(c);
+    j["condition"] = column;
+    j["a"] = ia.mean;
+    j["b"] = ib.mean;
+    j["seeds_a"] = static_cast<int>(sa.size());
+    j["seeds_b"] = static_cast<int>(jt->second.size());
+    conditions.push_back(j);
+    all_a.push_back(sa);
+    all_b.push_back(jt->second);
+  }
+  if (all_a.empty())
+    throw ConfigError("--compare: " + a + " and " + b + " share no condition whose runs hold "
+                      "their episodes on the same tasks");
+  nlohmann::json out = {{"a", a}, {"b", b}, {"metric", key}, {"conditions", conditions}};
+  // Over conditions: only when each label has as many seeds in every condition.
+  bool same_seeds = true;
+  for (size_t k = 1; k < all_a.size(); ++k)
+    same_seeds = same_seeds && all_a[k].size() == all_a[0].size() &&
+                 all_b[k].size() == all_b[0].size();
+  if (all_a.size() > 1 && same_seeds) {
+    const Comparison c = compare(all_a, all_b);
+    md += "| over " + std::to_string(all_a.size()) + " conditions | | | " + pct(c.difference) +
+          " [" + pct(c.lo) + ", " + pct(c.hi) + "] | " + format_number(c.p_improvement, "%.2f") +
+          " | " + verdict_text(c.verdict) + " |\n";
+    out["over_conditions"] = comparison_json(c);
+  } else if (all_a.size() > 1) {
+    md += "\n(no row over conditions: a label has different seed counts across them)\n";
+  }
+  return {md, out.dump()};
+}
+
+ComparisonReport render_power(const ReportTable& table, const std::string& key, double delta) {
+  if (!episode_indicator(key))
+    throw ConfigError("--power: '" + key + "' is not a share of episodes");
+  if (!(delta > 0 && delta < 100))
+    throw ConfigError("--delta must be a number of points in (0, 100)");
+  std::string md = "## Power: " + key + ", to resolve " + format_number(delta, "%.1f") +
+                   " points (alpha 0.05 two-sided, 80% power)\n\n| label | condition | seeds | "
+                   "episodes/seed | seed sd | episode sd | half-width now | difference "
+                   "half-width now | seeds needed | seeds needed at 4x tasks |\n"
+                   "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+  nlohmann::json cells = nlohmann::json::array();
+  for (const std::string& label : table.labels)
+    for (const auto& [column, seeds] : runs_by_column(table, label, key)) {
+      const VarianceComponents v = variance_components(seeds);
+      const PowerPlan p = power(v, delta / 100.0);
+      md += "| " + label + " | " + column + " | " + std::to_string(v.seeds) + " | " +
+            format_number(v.episodes_per_seed, "%.0f") + " | " +
+            pct(std::sqrt(v.seed_variance)) + " | " + pct(std::sqrt(v.episode_variance)) +
+            " | " + pct(p.rate_half_width) + " | " + pct(p.difference_half_width) + " | " +
+            std::to_string(p.seeds_needed) + " | " + std::to_string(p.seeds_needed_4x_tasks) +
+            " |\n";
+      cells.push_back({{"label", label},
+                       {"condition", column},
+                       {"seeds", v.seeds},
+                       {"episodes_per_seed", v.episodes_per_seed},
+                       {"seed_variance", v.seed_variance},
+                       {"episode_variance", v.episode_variance},
+                       {"rate_half_width", p.rate_half_width},
+                       {"difference_half_width", p.difference_half_width},
+                       {"seeds_needed", p.seeds_needed},
+                       {"seeds_needed_4x_tasks", p.seeds_needed_4x_tasks}});
+    }
+  if (cells.empty()) md += "\n(no run holds its episodes: nothing to plan from)\n";
+  return {md, nlohmann::json({{"metric", key}, {"delta_points", delta}, {"cells", cells}}).dump()};
+}
+
+std::string render_json_cells(const ReportTable& table, const std::vector<MetricSet>& sets) {
+  nlohmann::json cells = nlohmann::json::array();
+  std::set<std::string> seen;
+  for (const MetricSet& set : sets)
+    for (const Metric& m : set.metrics) {
+      if (!seen.insert(m.key).second) continue;
+      for (const auto& label : table.labels)
+        for (const auto& column : table.suites) {
+          std::optional<CellStats> s = table.stats(label, column, m.key);
+          if (!s) continue;
+          nlohmann::json c = {{"label", label}, {"column", column}, {"metric", m.key},
+                              {"n", s->n}};
+          c["mean"] = s->n > 0 ? nlohmann::json(s->mean) : nlohmann::json();
+          c["std"] = s->std ? nlohmann::json(*s->std) : nlohmann::json();
+          if (s->interval) {
+            c["lo"] = s->interval->lo;
+            c["hi"] = s->interval->hi;
+            c["seeds"] = s->interval->seeds;
+            c["episodes"] = s->interval->episodes;
+          }
+          cells.push_back(c);
+        }
+    }
+  return nlohmann::json({{"cells", cells}}).dump();
 }
 
 }  // namespace cd

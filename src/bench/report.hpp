@@ -13,7 +13,18 @@
 #include <utility>
 #include <vector>
 
+#include "bench/intervals.hpp"
+
 namespace cd {
+
+// One episode of a run, as the intervals need it: its task, and its outcome (driving) or
+// return (MuJoCo-Image).
+struct RunEpisode {
+  int task = 0;
+  std::string outcome, collision_kind;
+  bool paper_inertia = false;
+  double ret = 0;
+};
 
 // One results.json, reduced to what the tables need.
 struct RunResult {
@@ -26,6 +37,7 @@ struct RunResult {
   std::string sensor = "clean"; // `sensor` (eval.sensor), "clean" when the file has none
   // Every numeric (or null) entry of `summary`; null is std::nullopt (e.g. no start delay).
   std::map<std::string, std::optional<double>> summary;
+  std::vector<RunEpisode> episodes;  // `episodes`, when the file has them
 
   // The column group of the tables: the suite, with " (SENSOR sensor)" unless clean.
   std::string column() const;
@@ -85,12 +97,28 @@ bool steers_freely(const RunResult& run);
 // MuJoCo-Image; else `all`, plus `lateral` (off-road beside the error) when a run steers freely.
 std::vector<MetricSet> default_metric_sets(const std::vector<RunResult>& runs);
 
-// Mean and sample standard deviation of one metric over the seeds of one (label, suite).
+// Mean and sample standard deviation of one metric over the seeds of one (label, suite), and
+// the rate's 95% interval over seeds and episodes (bench/intervals.hpp: rate_interval) when
+// the metric is a share of episodes (episode_indicator) and every run of the cell has its
+// episodes (as many as its summary counts) on the same tasks, the same trials each, none an
+// infrastructure failure.
 struct CellStats {
   int n = 0;                  // runs with a value (null values are left out)
   double mean = 0;            // valid when n >= 1
   std::optional<double> std;  // sample standard deviation, when n >= 2
+  std::optional<Interval> interval;
 };
+
+// Whether an episode counts for a rate of `summary` (success_rate: its outcome is success, ...),
+// or null for a metric that is not a share of episodes (stall_rate is per event, green lights
+// per passage, the rest are not rates).
+using EpisodeIndicator = bool (*)(const RunEpisode&);
+EpisodeIndicator episode_indicator(const std::string& key);
+
+// The runs of one cell as seeds x tasks of `key`'s indicator; null when the intervals cannot be
+// had (see CellStats).
+std::optional<SeedRuns> seed_runs(const std::vector<const RunResult*>& runs,
+                                  const std::string& key);
 
 // Mean and sample standard deviation (n - 1); n = 0 for an empty list.
 CellStats mean_std(const std::vector<double>& values);
@@ -119,9 +147,33 @@ ReportTable condition_table(const ReportTable& table, const FailureCondition& co
 // between sets. A by_condition set gives one such table per condition that has runs (title
 // "SET TITLE, CONDITION (TOWN, SENSOR sensor; ...)"), or its title and one line saying that no
 // run is in any condition.
-// Cells: "mean ± sd" (just the mean for one seed), "–" when the label has no run on the suite,
-// "n/a" when its runs have no value for the metric (null, e.g. no stop-and-go event).
-std::string render_markdown(const ReportTable& table, const std::vector<MetricSet>& sets);
+// Cells: "mean [lo, hi]", the rate's 95% interval, where CellStats has one; else (and with
+// spread "sd") "mean ± sd" (just the mean for one seed); "–" when the label has no run on the
+// suite, "n/a" when its runs have no value for the metric (null, e.g. no stop-and-go event).
+enum class Spread { interval, sd };
+std::string render_markdown(const ReportTable& table, const std::vector<MetricSet>& sets,
+                            Spread spread = Spread::interval);
+
+// `report --compare A B`: A - B in `key` (a rate) per column where both labels have runs with
+// episodes, and over those columns (the k-th run of a label in each column, in path order, is
+// its k-th training seed), with the paired 95% interval, P(A > B) and the verdict
+// (bench/intervals.hpp: compare). Markdown, and the same as JSON. Throws ConfigError for a
+// label without runs, a key that is not a rate, or no column where both can be compared.
+struct ComparisonReport {
+  std::string markdown;
+  std::string json;  // one JSON object
+};
+ComparisonReport render_comparison(const ReportTable& table, const std::string& a,
+                                   const std::string& b, const std::string& key);
+
+// `report --power`: per cell with episodes, for `key`, the variance components, the half-width
+// reached and the seeds per method needed to resolve `delta` (rate units) at these and at 4x
+// the tasks (bench/intervals.hpp: power). Markdown and JSON.
+ComparisonReport render_power(const ReportTable& table, const std::string& key, double delta);
+
+// Every cell of `sets` as one JSON object: {"cells": [{label, column, metric, mean, std, n,
+// lo, hi, seeds, episodes}, ...]} (lo/hi/seeds/episodes only where there is an interval).
+std::string render_json_cells(const ReportTable& table, const std::vector<MetricSet>& sets);
 
 // Long format: header `label,suite,metric,mean,std,n`, one row per present cell and metric
 // (metrics of the sets, each once), values in the units of results.json (rates as fractions),

@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "bench/html_report.hpp"
 #include "bench/report.hpp"
 #include "cli/commands.hpp"
@@ -22,6 +24,12 @@ struct ReportArgs {
   std::string metrics = "all", csv, markdown, html;
   std::vector<int> episodes;
   int replay_frames = 300;
+  std::string spread = "interval";
+  std::vector<std::string> compare;
+  std::string compare_metric = "success_rate";
+  bool power = false;
+  double delta = 10.0;
+  bool json = false;
 };
 
 // write_file_atomic, with filesystem errors (e.g. a parent that is a file) as IoError.
@@ -38,7 +46,8 @@ void write_output(const std::string& option, const std::string& path, const std:
 void add_report(CLI::App& app) {
   auto args = std::make_shared<ReportArgs>();
   CLI::App* sub = app.add_subcommand(
-      "report", "comparison tables (mean ± sd over seeds) from evaluation runs' results.json");
+      "report", "comparison tables (rates with 95% intervals over seeds and episodes, or mean ± "
+                "sd) from evaluation runs' results.json");
   sub->add_option("RUN_DIR", args->run_dirs,
                   "evaluation output folders holding results.json, or folders under which they "
                   "lie (searched recursively)");
@@ -67,6 +76,27 @@ void add_report(CLI::App& app) {
   sub->add_option("--replay-frames", args->replay_frames,
                   "with --html: frames per replay at most; a longer episode shows every k-th step")
       ->check(CLI::PositiveNumber);
+  sub->add_option("--spread", args->spread,
+                  "interval: a rate as 'mean [lo, hi]', its 95% interval over seeds and "
+                  "episodes, where the runs hold their episodes (default); sd: 'mean ± sd' over "
+                  "seeds, as before")
+      ->check(CLI::IsMember({"interval", "sd"}));
+  sub->add_option("--compare", args->compare,
+                  "A B: A - B per condition and over conditions, with its paired 95% interval, "
+                  "P(A > B) and a verdict (labels as in the tables)")
+      ->expected(2)
+      ->type_name("A B");
+  sub->add_option("--compare-metric", args->compare_metric,
+                  "the rate --compare and --power use (default success_rate)")
+      ->type_name("KEY");
+  sub->add_flag("--power", args->power,
+                "per label and condition: the half-width reached and the seeds needed to "
+                "resolve --delta points, from the observed seed and episode variance");
+  sub->add_option("--delta", args->delta, "points --power plans for (default 10)")
+      ->type_name("D");
+  sub->add_flag("--json", args->json,
+                "print one JSON object (cells with their intervals, and --compare / --power) "
+                "instead of the Markdown");
   sub->callback([args] {
     // Validated here rather than by CLI11 so that every user error is one line and exit code 1.
     std::vector<MetricSet> sets = parse_metric_sets(args->metrics);
@@ -81,7 +111,20 @@ void add_report(CLI::App& app) {
     // MuJoCo-Image's table.
     if (default_sets) sets = default_metric_sets(runs);
     ReportTable table = build_report(runs);
-    std::string markdown = render_markdown(table, sets);
+    const Spread spread = args->spread == "sd" ? Spread::sd : Spread::interval;
+    std::string markdown = render_markdown(table, sets, spread);
+    nlohmann::json extra = nlohmann::json::object();
+    if (!args->compare.empty()) {
+      const ComparisonReport c =
+          render_comparison(table, args->compare[0], args->compare[1], args->compare_metric);
+      markdown += "\n" + c.markdown;
+      extra["compare"] = nlohmann::json::parse(c.json);
+    }
+    if (args->power) {
+      const ComparisonReport p = render_power(table, args->compare_metric, args->delta);
+      markdown += "\n" + p.markdown;
+      extra["power"] = nlohmann::json::parse(p.json);
+    }
     if (!args->csv.empty()) write_output("--csv", args->csv, render_csv(table, sets));
     if (!args->markdown.empty()) write_output("--markdown", args->markdown, markdown);
     if (!args->html.empty()) {
@@ -92,7 +135,14 @@ void add_report(CLI::App& app) {
     } else if (!args->episodes.empty()) {
       throw ConfigError("--episodes chooses the replays of --html; give --html FILE");
     }
-    std::fwrite(markdown.data(), 1, markdown.size(), stdout);
+    if (args->json) {
+      nlohmann::json out = nlohmann::json::parse(render_json_cells(table, sets));
+      out.update(extra);
+      const std::string text = out.dump(1) + "\n";
+      std::fwrite(text.data(), 1, text.size(), stdout);
+    } else {
+      std::fwrite(markdown.data(), 1, markdown.size(), stdout);
+    }
     std::fflush(stdout);
   });
 }

@@ -2,6 +2,7 @@
 // failure's step of a recorded episode, the default choice of replays, and the page's tables
 // as `report`'s Markdown row for row.
 #include "bench/html_report.hpp"
+#include "bench/report.hpp"
 
 #include <gtest/gtest.h>
 
@@ -97,6 +98,34 @@ TEST(HtmlReport, AChartKeepsALongLabelWholeAndItsMarkupClosed) {
   EXPECT_NE(page.find("data-label=\"" + label + "\""), std::string::npos) << "the label whole";
   EXPECT_NE(page.find("<title>" + label + ", success: 50.0%"), std::string::npos);
   EXPECT_NE(page.find("</svg></figure>"), std::string::npos);
+}
+
+TEST(HtmlReport, ChartWhiskersAreTheRatesIntervalWhereTheRunsListTheirEpisodes) {
+  TempDir dir("cdtest-html");
+  std::vector<RunResult> runs;
+  for (int seed = 0; seed < 2; ++seed) {
+    nlohmann::json eps = nlohmann::json::array();
+    for (int t = 0; t < 4; ++t)
+      eps.push_back({{"task", t}, {"outcome", t < 2 + seed ? "success" : "collision"}});
+    const double success = (2.0 + seed) / 4;
+    nlohmann::json res = {{"agent", "bc-oh"},
+                          {"suite", "town-a-regular"},
+                          {"summary", {{"episodes", 4}, {"success_rate", success},
+                                       {"collision_rate", 1 - success}, {"copycat_rate", 0.0}}},
+                          {"episodes", eps}};
+    const std::string path = dir / ("r" + std::to_string(seed) + ".json");
+    test::write_text(path, res.dump());
+    runs.push_back(load_result(path));
+  }
+  HtmlReportOptions o;
+  o.max_replays = 0;
+  const std::string page = render_html_report(runs, "", o);
+  const Interval want = *build_report(runs).stats("bc-oh", "town-a-regular", "success_rate")->interval;
+  char title[64];
+  std::snprintf(title, sizeof title, "success: 62.5%% (95%% [%.1f, %.1f], n 2)", 100 * want.lo,
+                100 * want.hi);
+  EXPECT_NE(page.find(title), std::string::npos) << title;
+  EXPECT_NE(page.find("class=\"ci\""), std::string::npos);
 }
 
 }  // namespace

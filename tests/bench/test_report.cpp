@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "../support/test_support.hpp"
+#include "bench/intervals.hpp"
 #include "bench/report.hpp"
 #include "core/error.hpp"
 
@@ -516,6 +517,114 @@ TEST(ReportFailureModes, NoRunInAnyConditionSaysSo) {
   put(dir / "bad", bad);
   std::string line = expect_one_line_error(test::run_cli({"report", dir / "bad"}), "sensor 3");
   EXPECT_TRUE(has(line, "'sensor'")) << line;
+}
+
+}  // namespace
+}  // namespace cd
+
+namespace cd {
+namespace {
+
+// A driving results.json whose episodes are listed: `outcomes[t][k]` is trial k of task t.
+nlohmann::json with_episodes(const std::string& label, const std::string& suite,
+                             const std::vector<std::vector<std::string>>& outcomes) {
+  nlohmann::json eps = nlohmann::json::array();
+  long n = 0, success = 0;
+  for (size_t t = 0; t < outcomes.size(); ++t)
+    for (size_t k = 0; k < outcomes[t].size(); ++k) {
+      eps.push_back({{"task", t}, {"trial", k}, {"outcome", outcomes[t][k]}});
+      ++n;
+      success += outcomes[t][k] == "success";
+    }
+  nlohmann::json j = results(label, suite, {{"episodes", n},
+                                            {"success_rate", double(success) / n}});
+  j["label"] = label;
+  j["episodes"] = eps;
+  return j;
+}
+
+TEST(ReportIntervals, RatesGetTheirIntervalComparisonsAndPower) {
+  TempDir dir("cdtest-report");
+  // Two labels x 3 seeds x 2 suites, 4 tasks x 2 trials each; A succeeds more often.
+  const std::vector<std::vector<std::vector<std::string>>> a_seeds = {
+      {{"success", "success"}, {"success", "collision"}, {"success", "success"}, {"stuck", "success"}},
+      {{"success", "success"}, {"success", "success"}, {"collision", "success"}, {"success", "success"}},
+      {{"success", "blocked"}, {"success", "success"}, {"success", "success"}, {"success", "success"}}};
+  const std::vector<std::vector<std::vector<std::string>>> b_seeds = {
+      {{"collision", "success"}, {"stuck", "collision"}, {"success", "stuck"}, {"stuck", "success"}},
+      {{"success", "collision"}, {"collision", "stuck"}, {"collision", "success"}, {"stuck", "stuck"}},
+      {{"stuck", "blocked"}, {"success", "collision"}, {"collision", "stuck"}, {"success", "stuck"}}};
+  for (const char* suite : {"town-a-regular", "town-a-dense"})
+    for (int s = 0; s < 3; ++s) {
+      put(dir / ("runs/" + std::string(suite) + "/a/seed" + std::to_string(s)),
+          with_episodes("A", suite, a_seeds[s]));
+      put(dir / ("runs/" + std::string(suite) + "/b/seed" + std::to_string(s)),
+          with_episodes("B", suite, b_seeds[s]));
+    }
+  // The oracle: the library's interval of the same seeds x tasks (its coverage is tested in
+  // test_intervals.cpp), per-task shares by hand.
+  auto seeds_of = [](const std::vector<std::vector<std::vector<std::string>>>& all) {
+    SeedRuns runs;
+    for (const auto& seed : all) {
+      SeedOutcomes o;
+      o.trials = 2;
+      for (const auto& task : seed)
+        o.per_task.push_back((task[0] == "success") * 0.5 + (task[1] == "success") * 0.5);
+      runs.push_back(o);
+    }
+    return runs;
+  };
+  const Interval ia = rate_interval(seeds_of(a_seeds));
+  auto fmt1 = [](double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.1f", 100 * v);
+    return std::string(b);
+  };
+  CommandResult r = test::run_cli({"report", dir / "runs", "--metrics", "outcomes"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  const std::string want = fmt1(ia.mean) + " [" + fmt1(ia.lo) + ", " + fmt1(ia.hi) + "]";
+  EXPECT_TRUE(has(r.out, want)) << want << "\n" << r.out;
+  CommandResult sd = test::run_cli({"report", dir / "runs", "--metrics", "outcomes", "--spread", "sd"});
+  ASSERT_EQ(sd.exit_code, 0) << sd.describe();
+  EXPECT_FALSE(has(sd.out, want)) << sd.out;
+  EXPECT_TRUE(has(sd.out, " \u00b1 ")) << sd.out;
+
+  CommandResult c = test::run_cli(
+      {"report", dir / "runs", "--metrics", "outcomes", "--compare", "A", "B", "--power", "--json"});
+  ASSERT_EQ(c.exit_code, 0) << c.describe();
+  const nlohmann::json j = nlohmann::json::parse(c.out);
+  const Comparison want_c = compare(seeds_of(a_seeds), seeds_of(b_seeds));
+  ASSERT_EQ(j["compare"]["conditions"].size(), 2u) << c.out;
+  const nlohmann::json& one = j["compare"]["conditions"][0];
+  EXPECT_DOUBLE_EQ(one["difference"].get<double>(), want_c.difference);
+  EXPECT_DOUBLE_EQ(one["p_improvement"].get<double>(), want_c.p_improvement);
+  EXPECT_EQ(one["verdict"], verdict_text(want_c.verdict));
+  EXPECT_TRUE(j["compare"].contains("over_conditions")) << c.out;
+  const PowerPlan want_p = power(variance_components(seeds_of(a_seeds)), 0.10);
+  bool found = false;
+  for (const auto& p : j["power"]["cells"])
+    if (p["label"] == "A" && p["condition"] == "town-a-regular") {
+      found = true;
+      EXPECT_EQ(p["seeds_needed"].get<long>(), want_p.seeds_needed);
+      EXPECT_DOUBLE_EQ(p["rate_half_width"].get<double>(), want_p.rate_half_width);
+    }
+  EXPECT_TRUE(found) << c.out;
+  bool interval = false;
+  for (const auto& cell : j["cells"])
+    if (cell["label"] == "A" && cell["metric"] == "success_rate") {
+      interval = true;
+      EXPECT_DOUBLE_EQ(cell["lo"].get<double>(), ia.lo);
+      EXPECT_DOUBLE_EQ(cell["hi"].get<double>(), ia.hi);
+    }
+  EXPECT_TRUE(interval) << c.out;
+
+  std::string line = expect_one_line_error(
+      test::run_cli({"report", dir / "runs", "--compare", "A", "C"}), "unknown label");
+  EXPECT_TRUE(has(line, "no run is labelled 'C'")) << line;
+  line = expect_one_line_error(test::run_cli({"report", dir / "runs", "--compare", "A", "B",
+                                              "--compare-metric", "stall_rate"}),
+                               "not a rate of episodes");
+  EXPECT_TRUE(has(line, "is not a share of episodes")) << line;
 }
 
 }  // namespace
