@@ -200,18 +200,25 @@ const std::vector<FailureCondition>& failure_conditions() {
 const std::vector<MetricSet>& metric_sets() {
   static const std::vector<MetricSet> sets = {
       {"error",
-       "Error rates (%, mean \u00b1 sd over seeds; error = collision + inertia; paper error = "
-       "inertia + collisions with vehicles, seed 000's measure)",
+       "Error rates (%; error = collision + inertia; paper error = seed 000's inertia (stood "
+       "the last 15 s, whatever the path) + collisions with vehicles, its measure)",
        {{"error_rate", "error %", 100.0},
         {"inertia_rate", "inertia %", 100.0},
         {"collision_rate", "collision %", 100.0},
         {"paper_error_rate", "paper error %", 100.0},
         {"pedestrian_collision_rate", "ped. collision %", 100.0}}},
       {"outcomes",
-       "Outcomes (%, mean \u00b1 sd over seeds)",
+       "Outcomes (%, every class of SPEC section 14: a row sums to 100; copycat = stuck + "
+       "restart stall + stopped free; runs evaluated before the taxonomy have n/a in its classes)",
        {{"success_rate", "success %", 100.0},
         {"collision_rate", "collision %", 100.0},
-        {"timeout_rate", "timeout %", 100.0}}},
+        {"offroad_rate", "off-road %", 100.0},
+        {"stuck_rate", "stuck %", 100.0},
+        {"restart_stall_rate", "restart stall %", 100.0},
+        {"stopped_free_rate", "stopped free %", 100.0},
+        {"blocked_rate", "blocked %", 100.0},
+        {"slow_rate", "slow %", 100.0},
+        {"copycat_rate", "copycat %", 100.0}}},
       {"stopgo",
        "Stop-and-go events (stall rate %, start delay s; mean \u00b1 sd over seeds)",
        {{"stall_rate", "stall %", 100.0},

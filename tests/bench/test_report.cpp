@@ -145,9 +145,10 @@ TEST(ReportCli, SeedsGiveMeanAndSampleStdInCsvAndTable) {
   // Equal values: std 0.
   EXPECT_TRUE(has_line("BC,town-a-dense,collision_rate,0.04,0,3")) << test::read_text(csv);
   // Each metric once though collision_rate is in three sets (error, outcomes, failure) and
-  // success and inertia in two: 13 metrics x 2 suites + header (green_light_rate and the
-  // collision kinds without a value in these files: rows with n = 0).
-  EXPECT_EQ(lines.size(), 1u + 2 * 13) << test::read_text(csv);
+  // success and inertia in two: 19 metrics x 2 suites + header (green_light_rate, the
+  // collision kinds and the taxonomy's classes without a value in these files: rows with
+  // n = 0).
+  EXPECT_EQ(lines.size(), 1u + 2 * 19) << test::read_text(csv);
   EXPECT_TRUE(has_line("BC,town-a-dense,green_light_rate,,,0")) << test::read_text(csv);
   EXPECT_TRUE(has_line("BC,town-a-dense,paper_error_rate,,,0")) << test::read_text(csv);
   EXPECT_EQ(test::list_dir(dir / "out"), std::vector<std::string>{"report.csv"})
@@ -183,22 +184,26 @@ TEST(ReportCli, MissingCellRowOrderAndColumnOrder) {
   EXPECT_TRUE(test::starts_with(lines[0], "## Outcomes")) << r.out;
   EXPECT_FALSE(has(r.out, "## Error")) << "--metrics outcomes prints one table\n" << r.out;
   std::vector<std::string> header = cells(lines[2]);
-  ASSERT_EQ(header.size(), 7u) << r.out;
+  // Nine columns per suite: success, collision, off-road, the five timeout classes, copycat.
+  ASSERT_EQ(header.size(), 19u) << r.out;
   EXPECT_EQ(header[0], "label");
   EXPECT_EQ(header[1], "s1 success %");
-  EXPECT_EQ(header[4], "s2 success %");
+  EXPECT_EQ(header[4], "s1 stuck %");
+  EXPECT_EQ(header[9], "s1 copycat %");
+  EXPECT_EQ(header[10], "s2 success %");
   EXPECT_TRUE(test::starts_with(lines[4], "| zeta ")) << r.out;
   EXPECT_TRUE(test::starts_with(lines[5], "| alpha ")) << r.out;
 
   std::vector<std::string> alpha = cells(lines[5]);
-  ASSERT_EQ(alpha.size(), 7u);
+  ASSERT_EQ(alpha.size(), 19u);
   EXPECT_EQ(alpha[1], "50.0") << "one seed: the mean alone";
-  EXPECT_EQ(alpha[4], kDash) << "alpha has no run on s2";
-  EXPECT_EQ(alpha[5], kDash);
-  EXPECT_EQ(alpha[6], kDash);
+  EXPECT_EQ(alpha[4], "n/a") << "a run from before the taxonomy has no classes";
+  EXPECT_EQ(alpha[10], kDash) << "alpha has no run on s2";
+  EXPECT_EQ(alpha[11], kDash);
+  EXPECT_EQ(alpha[18], kDash);
   std::vector<std::string> zeta = cells(lines[4]);
   EXPECT_EQ(zeta[1], "25.0");
-  EXPECT_EQ(zeta[4], "90.0");
+  EXPECT_EQ(zeta[10], "90.0");
 
   std::string csv_text = test::read_text(csv);
   EXPECT_FALSE(has(csv_text, "alpha,s2,")) << "no rows for a missing cell\n" << csv_text;
@@ -480,9 +485,9 @@ TEST(ReportFailureModes, ShiftedRunsHaveTheirOwnColumnsAndTheLightsTable) {
   CommandResult r = test::run_cli({"report", dir / "runs", "--csv", csv});
   ASSERT_EQ(r.exit_code, 0) << r.describe();
   std::vector<std::string> bc = cells(table_row(r.out, "Outcomes", "bc"));
-  ASSERT_EQ(bc.size(), 7u) << "clean and shifted are two column groups\n" << r.out;
+  ASSERT_EQ(bc.size(), 19u) << "clean and shifted are two column groups\n" << r.out;
   EXPECT_EQ(bc[1], "80.0") << r.out;
-  EXPECT_EQ(bc[4], "20.0") << r.out;
+  EXPECT_EQ(bc[10], "20.0") << r.out;
   EXPECT_TRUE(has(r.out, "town-a-regular (shifted sensor) success %")) << r.out;
   const std::string text = test::read_text(csv);
   EXPECT_TRUE(has(text, "bc,town-a-regular (shifted sensor),success_rate,0.2,,1\n")) << text;
