@@ -110,10 +110,15 @@ bool flock_unsupported(int err) {
   return err == ENOSYS || err == ENOLCK || err == EOPNOTSUPP || err == EINVAL;
 }
 
+// Whether a process of this host runs with that pid. A zombie (killed, not yet reaped: a
+// container whose init does not reap) has ended: its descriptors, and locks, are gone.
 bool pid_alive(const std::string& pid_text) {
   const long pid = std::atol(pid_text.c_str());
   if (pid <= 0) return false;
-  return ::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM;
+  if (::kill(static_cast<pid_t>(pid), 0) != 0 && errno != EPERM) return false;
+  const std::string stat = read_path("/proc/" + std::to_string(pid) + "/stat");
+  const size_t paren = stat.rfind(')');
+  return paren == std::string::npos || paren + 2 >= stat.size() || stat[paren + 2] != 'Z';
 }
 
 // The folder, created, as one canonical key; *created says whether it was made here.
@@ -241,12 +246,14 @@ enum class Holder { None, Dead, Live };
 // Whether the job the lock file names still holds it. flock (when the file system has it) has
 // already kept out a live holder that shares our lock manager; what is left: a holder on
 // another node (node-local flock, or none at all), judged by its heartbeat.
-Holder judge_holder(const std::string& file, const std::string& dir, std::string* content) {
+Holder judge_holder(const std::string& file, const std::string& dir, bool flocked,
+                    std::string* content) {
   auto kv = parse_lock(*content);
   if (kv.empty() || kv["state"] == "released") return Holder::None;
   if (!kv.count("state") || !kv.count("beat")) return Holder::Dead;  // before heartbeats: flock's
+  // On this host flock is the kernel's own: had the holder lived, it would have kept us out.
   const bool here = kv["host"] == host_name();
-  if (here && !pid_alive(kv["pid"])) return Holder::Dead;
+  if (here && (flocked || !pid_alive(kv["pid"]))) return Holder::Dead;
   // Watch the heartbeat for three periods: a live holder beats at least twice.
   const double period = lock_beat_seconds();
   const auto until = Clock::now() + std::chrono::duration_cast<Clock::duration>(Seconds(3 * period));
@@ -306,7 +313,7 @@ RunLock lock_here(const std::string& dir, const std::string& command) {
       continue;
     }
     std::string previous = read_path(file);
-    const Holder holder = judge_holder(file, dir, &previous);
+    const Holder holder = judge_holder(file, dir, flocked, &previous);
     if (holder == Holder::Live) {
       ::close(fd);
       throw busy(previous);

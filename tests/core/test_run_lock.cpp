@@ -7,7 +7,10 @@
 
 #include <fcntl.h>
 #include <sys/file.h>
+#include <sys/wait.h>
 #include <unistd.h>
+
+#include <cerrno>
 
 #include <filesystem>
 #include <string>
@@ -149,6 +152,42 @@ TEST(RunLock, OneProcessNestsAndHoldsUntilTheLastRelease) {
   const int fd = hold_as_other(run);
   EXPECT_GE(fd, 0) << "free once released";
   if (fd >= 0) ::close(fd);
+}
+
+TEST(RunLock, AHolderOnThisHostThatIsAZombieIsTakenOverAtOnce) {
+  // A killed job whose parent has not reaped it (a container's init may never): kill(pid, 0)
+  // still succeeds on it, but it holds nothing. With flock (this host's lock, free) and
+  // without it (its pid's state is read), it is taken over without waiting for a heartbeat.
+  TempDir dir("cdtest-lock");
+  const pid_t zombie = fork();
+  ASSERT_GE(zombie, 0);
+  if (zombie == 0) _exit(0);
+  for (int i = 0; i < 200 && test::read_text("/proc/" + std::to_string(zombie) + "/stat")
+                                         .find(") Z ") == std::string::npos;
+       ++i)
+    ::usleep(10000);
+  ::setenv(kLockBeatEnv, "5", 1);  // a wait for the heartbeat would take 15 s
+  for (bool no_flock : {false, true}) {
+    if (no_flock)
+      lock_testing::set_flock([](int, int) {
+        errno = ENOSYS;
+        return -1;
+      });
+    const std::string run = dir / (no_flock ? "no-flock" : "flock");
+    fs::create_directories(run);
+    test::write_text(run + "/" + kRunLockName,
+                     "command eval\nhost " + host_name() + "\npid " + std::to_string(zombie) +
+                         "\nstarted 2026-11-27T05:00:00Z\ntoken z\nbeat 3\nstate held\n");
+    testing::internal::CaptureStderr();
+    { RunLock l = lock_run_folder(run, "eval"); }
+    const std::string said = testing::internal::GetCapturedStderr();
+    EXPECT_EQ(said.find("waiting"), std::string::npos)
+        << "no wait for a heartbeat (" << (no_flock ? "no flock" : "flock") << "): " << said;
+    EXPECT_NE(said.find("which has ended"), std::string::npos) << said;
+  }
+  lock_testing::set_flock(nullptr);
+  ::unsetenv(kLockBeatEnv);
+  ::waitpid(zombie, nullptr, 0);
 }
 
 }  // namespace
