@@ -408,6 +408,14 @@ RunResult load_result(const std::string& path) {
   return r;
 }
 
+namespace {
+// One of the taxonomy's timeout classes (records before it said inertia or timeout).
+bool ran_out_of_time(const RunEpisode& e) {
+  const auto& classes = timeout_classes();
+  return std::find(classes.begin(), classes.end(), e.outcome) != classes.end();
+}
+}  // namespace
+
 EpisodeIndicator episode_indicator(const std::string& key) {
   static const std::map<std::string, EpisodeIndicator> indicators = {
       {"success_rate", [](const RunEpisode& e) { return e.outcome == "success"; }},
@@ -422,14 +430,11 @@ EpisodeIndicator episode_indicator(const std::string& key) {
       {"copycat_rate", [](const RunEpisode& e) { return is_copycat_class(e.outcome) || e.outcome == "inertia"; }},
       {"timeout_rate",
        [](const RunEpisode& e) {
-         return e.outcome == "timeout" || e.outcome == "restart_stall" ||
-                e.outcome == "stopped_free" || e.outcome == "blocked" || e.outcome == "slow";
+         return e.outcome == "timeout" || (ran_out_of_time(e) && e.outcome != "stuck");
        }},
       {"time_limit_rate",
        [](const RunEpisode& e) {
-         return e.outcome == "timeout" || e.outcome == "inertia" ||
-                std::find(timeout_classes().begin(), timeout_classes().end(), e.outcome) !=
-                    timeout_classes().end();
+         return e.outcome == "timeout" || e.outcome == "inertia" || ran_out_of_time(e);
        }},
       {"error_rate",
        [](const RunEpisode& e) {

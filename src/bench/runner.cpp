@@ -167,10 +167,12 @@ void EpisodeScorer::observe(const World& world, const StepResult& sr) {
   const double v = world.ego().speed;
   const bool pf = world.truth().path_free;
   tracker_.observe(v, pf);
-  stopped_.push_back(v < kStoppedSpeed);
+  const bool stopped = v < kStoppedSpeed;
+  // The cause matters only where a standstill begins: read it there, not every step.
+  if (stopped && (stopped_.empty() || !stopped_.back())) stop_cause_ = path_cause(world.truth());
+  stopped_.push_back(stopped);
   free_path_.push_back(pf);
   speed_.push_back(static_cast<float>(v));
-  cause_.push_back(path_cause(world.truth()));
 }
 
 EpisodeResult EpisodeScorer::finish(const World& world, const StepResult& last,
@@ -204,7 +206,7 @@ EpisodeResult EpisodeScorer::finish(const World& world, const StepResult& last,
     size_t k = n;
     while (k > 0 && stopped_[k - 1]) --k;
     r.last_stop_s = at_step(k);
-    r.last_stop_cause = cause_[k];
+    r.last_stop_cause = stop_cause_;  // the final standstill began at step k
   }
   const size_t per_second = std::max<size_t>(1, static_cast<size_t>(std::lround(1.0 / dt_)));
   const size_t tail = std::min(n, per_second * static_cast<size_t>(kInertiaSpan));

@@ -72,7 +72,7 @@ class EpisodeScorer {
   StopGoTracker tracker_;
   std::vector<char> stopped_, free_path_;
   std::vector<float> speed_;
-  std::vector<std::string> cause_;  // what held the path at each step (path_cause)
+  std::string stop_cause_;  // what held the path when the ego last came to a stop (path_cause)
   EpisodeResult r_;
 };
 
