@@ -75,8 +75,8 @@ def mlp(widths, out, dropout):
     return nn.Sequential(*layers, nn.Linear(widths[-1], out))
 
 
-class Policy(nn.Module):  # PolicyNet, head "cilrs", throttle_brake (sigmoid)
-    def __init__(self, backbone, cin, size, feat=256, actions=2, dropout=0.2):
+class Policy(nn.Module):  # PolicyNet, head "cilrs", throttle_brake, signed pedals (tanh): the default
+    def __init__(self, backbone, cin, size, feat=256, actions=1, dropout=0.2):
         super().__init__()
         self.backbone = Small(cin, size, feat) if backbone == "small" else ResNet34(cin, feat)
         self.speed_head = mlp([feat, feat, feat], 1, 0.0)
@@ -91,7 +91,7 @@ class Policy(nn.Module):  # PolicyNet, head "cilrs", throttle_brake (sigmoid)
         j = self.fusion(torch.cat([f, self.measurement(speed)], 1))
         stacked = torch.stack([b(j) for b in self.branches], 1)
         index = command.clamp(0, BRANCHES - 1).view(-1, 1, 1).expand(-1, 1, stacked.size(2))
-        return torch.sigmoid(stacked.gather(1, index).squeeze(1)), self.speed_head(f)
+        return torch.tanh(stacked.gather(1, index).squeeze(1)), self.speed_head(f)
 
 
 def bench(a):
@@ -109,7 +109,7 @@ def bench(a):
         image = image.contiguous(memory_format=torch.channels_last)
     speed = torch.zeros(B, 1, device=dev)
     command = torch.randint(0, 4, (B,), device=dev)
-    target, speed_label = torch.rand(B, 2, device=dev), torch.rand(B, 1, device=dev) * 10
+    target, speed_label = torch.rand(B, 1, device=dev), torch.rand(B, 1, device=dev) * 10
 
     def step():
         with torch.autocast(device_type=dev.type, dtype=torch.bfloat16,

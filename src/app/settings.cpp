@@ -100,7 +100,7 @@ void visit_settings(S& st, V&& v) {
   v.integer("model", "history", st.model.history, 1, 64);
   v.integer("model", "history_stride", st.model.history_stride, 1, 100);
   v.text("model", "action_head", st.model.action_head, {"throttle_brake", "target_speed"});
-  v.text("model", "pedals", st.model.pedals, {"two", "signed"});
+  v.text("model", "pedals", st.model.pedals, {"auto", "two", "signed"});
   v.flag("model", "speed_input", st.model.speed_input);
   v.integer("model", "features", st.model.features, 8, 4096);
   v.number("model", "speed_loss_weight", st.model.speed_loss_weight, 0, 100);
@@ -123,7 +123,7 @@ void visit_settings(S& st, V&& v) {
   v.flag("train", "cuda_deterministic", st.train.cuda_deterministic);
   v.integer("train", "max_samples", st.train.max_samples, 0, kMaxI64);
   v.integer("train", "epoch_samples", st.train.epoch_samples, 0, kMaxI64);
-  v.text("train", "situation_weights", st.train.situation_weights, {"none", "balanced"});
+  v.text("train", "situation_weights", st.train.situation_weights, {"auto", "none", "balanced"});
   v.number("train", "situation_weight_max", st.train.situation_weight_max, 1, 1000);
   v.text("train", "out", st.train.out, {});
 

@@ -48,8 +48,9 @@ struct CollectSettings {
   // s the ego is held braked at the start of an episode while the expert's labels (it wants to
   // go) are recorded: the state eval's history prefill (eval.prefill_s) puts a policy in, a
   // still history on a free road, with the expert's answer. Those steps are marked as not the
-  // expert's motion (noise mask 1). 0: the expert drives from the first step.
-  double hold_s = 0;
+  // expert's motion (noise mask 1). 0: the expert drives from the first step. The default, 1 s,
+  // is the validated recipe's (configs/residual_paper.toml); 0 was the default before it.
+  double hold_s = 1.0;
   NoiseSettings noise;
   AugmentSettings augment;
 };
@@ -84,7 +85,9 @@ struct TrainSettings {
   // training sample weighs N / (C n_c) for its situation class c (datasets/situation.hpp:
   // the rare transitions, starting and stopping, as much in all as cruising), at most
   // situation_weight_max, then scaled to a mean of 1 (coiltraine's balanced batches, as weights).
-  std::string situation_weights = "none";
+  // "auto" (the default, the validated recipe's): "balanced" on driving data, "none" on other
+  // domains; a run records the value it resolved to (resolve_recipe, methods/policy_family.hpp).
+  std::string situation_weights = "auto";
   double situation_weight_max = 10.0;
   std::string out = "runs/quickstart/train";
 };

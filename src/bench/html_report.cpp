@@ -97,7 +97,8 @@ std::string bar_charts(const ReportTable& table, const std::vector<Series>& seri
     for (const std::string& l : labels)
       for (const Series& s : series)
         if (auto st = table.stats(l, suite, s.key); st && st->n > 0)
-          top = std::max(top, std::abs(st->mean * scale) + st->std.value_or(0) * std::abs(scale));
+          top = std::max({top, std::abs(st->mean * scale) + st->std.value_or(0) * std::abs(scale),
+                          st->interval ? st->interval->hi * scale : 0.0});
     if (top <= 0) top = 1;
     const double bar = 16, gap = 28, left = 48, plot_h = 160, top_pad = 14;
     const double group_w = bar * static_cast<double>(series.size()) + gap;
@@ -165,11 +166,13 @@ std::string bar_charts(const ReportTable& table, const std::vector<Series>& seri
   return o.str();
 }
 
-std::string charts_html(const std::vector<RunResult>& runs) {
-  const ReportTable table = build_report(runs);
+std::string charts_html(const std::vector<RunResult>& runs, const HtmlReportOptions& options) {
+  ReportTable table = build_report(runs);
+  table.bootstrap_seed = options.bootstrap_seed;
+  table.resamples = options.resamples;
   const bool all_mujoco = std::all_of(runs.begin(), runs.end(), [](const RunResult& r) { return r.mujoco; });
   if (all_mujoco)
-    return bar_charts(table, {{"mean_return", "return", "#4e79a7"}}, 1.0, "", false);
+    return bar_charts(table, {{kIqmReturn, "IQM return", "#4e79a7"}}, 1.0, "", false);
   std::vector<Series> series = {{"success_rate", "success", "#59a14f"},
                                 {"collision_rate", "collision", "#e15759"},
                                 {"copycat_rate", "copycat", "#f28e2b"}};
@@ -485,8 +488,9 @@ std::string render_html_report(const std::vector<RunResult>& runs, const std::st
   page << "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n"
        << "<title>causaldrive report</title>\n<style>" << kStyle << "</style></head><body>\n"
        << "<h1>causaldrive report</h1>\n<p>" << runs.size()
-       << " evaluation run(s); mean &plusmn; sd over the runs of each agent and suite (seeds).</p>\n";
-  page << "<h2 id=\"charts\">Charts</h2>\n" << charts_html(runs);
+       << " evaluation run(s). Whiskers and brackets: 95% intervals over training seeds and their "
+          "episodes where the runs list their episodes; else &plusmn; sd over seeds.</p>\n";
+  page << "<h2 id=\"charts\">Charts</h2>\n" << charts_html(runs, o);
   page << "<h2 id=\"tables\">Tables</h2>\n" << tables_html(markdown);
   page << "<h2 id=\"replays\">Replays</h2>\n";
   const std::vector<ReplayPick> picks = pick_replays(runs, o);

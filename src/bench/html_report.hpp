@@ -7,6 +7,7 @@
 // (speed, throttle, brake, steer, causes; MuJoCo-Image: the return so far and the actions) and
 // the failure's moment marked. Nothing is fetched
 // when it opens: the frames are PNG data URIs, the script and style are inline.
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -20,6 +21,8 @@ struct HtmlReportOptions {
                               // run, the lowest return per MuJoCo-Image run
   int max_frames = 300;       // per replay at most: a longer episode shows every k-th step
   int max_replays = 10;       // on the page at most, in the order of the runs
+  uint64_t bootstrap_seed = 0;  // the MuJoCo-Image chart's IQM interval (ReportTable)
+  int resamples = 10000;
 };
 
 // An episode chosen for a replay.

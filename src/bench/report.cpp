@@ -160,7 +160,13 @@ std::string render_set_table(const ReportTable& table, const MetricSet& set,
   for (size_t i = 1; i < rows.size(); ++i)
     for (size_t c = 1; c < rows[i].size(); ++c)
       any_interval = any_interval || rows[i][c].find(" [") != std::string::npos;
-  if (any_interval)
+  const bool iqm = std::any_of(set.metrics.begin(), set.metrics.end(),
+                              [](const Metric& m) { return m.key == kIqmReturn; });
+  if (any_interval && iqm)
+    out += "IQM return: the interquartile mean over seeds x episodes [95% two-level bootstrap "
+           "interval, " + std::to_string(table.resamples) + " resamples, seed " +
+           std::to_string(table.bootstrap_seed) + "]; the rest mean \u00b1 sd over seeds.\n\n";
+  else if (any_interval)
     out += "Rates of episodes: mean [95% interval over training seeds and their episodes]; the "
            "rest mean \u00b1 sd over seeds.\n\n";
   out += line(rows[0]);
@@ -248,9 +254,10 @@ const std::vector<MetricSet>& metric_sets() {
        false,
        false},
       {"return",
-       "MuJoCo-Image (eval --env): return per episode and the copycat R\u00b2 of a_t from "
-       "a_{t-1}, policy vs its expert's data (mean \u00b1 sd over seeds)",
+       "MuJoCo-Image (eval --env): return per episode, its interquartile mean over seeds x "
+       "episodes, and the copycat R\u00b2 of a_t from a_{t-1}, policy vs its expert's data",
        {{"mean_return", "return", 1.0},
+        {kIqmReturn, "IQM return", 1.0},
         {"mean_length", "length", 1.0, 0},
         {"copycat_policy_r2", "R\u00b2 policy", 1.0, 3},
         {"copycat_expert_r2", "R\u00b2 expert", 1.0, 3}},
@@ -505,6 +512,29 @@ std::optional<CellStats> ReportTable::stats(const std::string& label, const std:
                                             const std::string& key) const {
   auto it = cells.find({label, suite});
   if (it == cells.end()) return std::nullopt;
+  if (key == kIqmReturn) {
+    std::vector<std::vector<double>> returns;
+    for (const RunResult* r : it->second) {
+      auto counted = r->summary.find("episodes");
+      if (!r->mujoco || r->episodes.empty() || counted == r->summary.end() || !counted->second ||
+          *counted->second != static_cast<double>(r->episodes.size()))
+        return CellStats{};
+      std::vector<double>& seed = returns.emplace_back();
+      for (const RunEpisode& e : r->episodes) seed.push_back(e.ret);
+    }
+    const IqmInterval q = iqm_interval(returns, bootstrap_seed, resamples);
+    CellStats stats;
+    stats.n = static_cast<int>(returns.size());
+    stats.mean = q.iqm;
+    Interval in;
+    in.mean = q.iqm;
+    in.lo = q.lo;
+    in.hi = q.hi;
+    in.seeds = stats.n;
+    for (const auto& seed : returns) in.episodes += static_cast<long>(seed.size());
+    stats.interval = in;
+    return stats;
+  }
   std::vector<double> values;
   for (const RunResult* r : it->second) {
     auto v = r->summary.find(key);

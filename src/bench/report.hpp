@@ -17,6 +17,9 @@
 
 namespace cd {
 
+// The return set's metric that is computed from the episodes, not read from the summary.
+inline constexpr const char* kIqmReturn = "iqm_return";
+
 // One episode of a run, as the intervals need it: its task, and its outcome (driving) or
 // return (MuJoCo-Image).
 struct RunEpisode {
@@ -102,6 +105,10 @@ std::vector<MetricSet> default_metric_sets(const std::vector<RunResult>& runs);
 // the metric is a share of episodes (episode_indicator) and every run of the cell has its
 // episodes (as many as its summary counts) on the same tasks, the same trials each, none an
 // infrastructure failure.
+// iqm_return (MuJoCo-Image): the interquartile mean of the returns over seeds x episodes, in
+// `mean` and in `interval` with its 95% two-level bootstrap interval (bench/intervals.hpp:
+// iqm_interval; the table's bootstrap_seed and resamples), where every run of the cell lists its
+// episodes' returns; n/a otherwise.
 struct CellStats {
   int n = 0;                  // runs with a value (null values are left out)
   double mean = 0;            // valid when n >= 1
@@ -129,6 +136,9 @@ struct ReportTable {
   // (label, column) -> the runs of it (one per seed); a pair not present is a missing cell.
   std::map<std::pair<std::string, std::string>, std::vector<const RunResult*>> cells;
   std::vector<const RunResult*> runs;  // all of them, in the order given
+  // iqm_return's two-level bootstrap (report --bootstrap-seed, --resamples).
+  uint64_t bootstrap_seed = 0;
+  int resamples = 10000;
 
   // Statistics of `key` in one cell; std::nullopt when no run of label on suite exists.
   std::optional<CellStats> stats(const std::string& label, const std::string& suite,

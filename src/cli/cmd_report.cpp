@@ -24,12 +24,15 @@ struct ReportArgs {
   std::string metrics = "all", csv, markdown, html;
   std::vector<int> episodes;
   int replay_frames = 300;
+  int max_replays = 10;
   std::string spread = "interval";
   std::vector<std::string> compare;
   std::string compare_metric = "success_rate";
   bool power = false;
   double delta = 10.0;
   bool json = false;
+  uint64_t bootstrap_seed = 0;
+  int resamples = 10000;
 };
 
 // write_file_atomic, with filesystem errors (e.g. a parent that is a file) as IoError.
@@ -76,6 +79,9 @@ void add_report(CLI::App& app) {
   sub->add_option("--replay-frames", args->replay_frames,
                   "with --html: frames per replay at most; a longer episode shows every k-th step")
       ->check(CLI::PositiveNumber);
+  sub->add_option("--max-replays", args->max_replays,
+                  "with --html: replays on the page at most, in the order of the runs (default 10)")
+      ->check(CLI::PositiveNumber);
   sub->add_option("--spread", args->spread,
                   "interval: a rate as 'mean [lo, hi]', its 95% interval over seeds and "
                   "episodes, where the runs hold their episodes (default); sd: 'mean ± sd' over "
@@ -94,6 +100,13 @@ void add_report(CLI::App& app) {
                 "resolve --delta points, from the observed seed and episode variance");
   sub->add_option("--delta", args->delta, "points --power plans for (default 10)")
       ->type_name("D");
+  sub->add_option("--bootstrap-seed", args->bootstrap_seed,
+                  "seed of the bootstrap behind MuJoCo-Image's IQM interval (default 0): same "
+                  "runs and seed, same bytes")
+      ->type_name("N");
+  sub->add_option("--resamples", args->resamples,
+                  "bootstrap resamples of the IQM interval (default 10000)")
+      ->type_name("N");
   sub->add_flag("--json", args->json,
                 "print one JSON object (cells with their intervals, and --compare / --power) "
                 "instead of the Markdown");
@@ -110,7 +123,10 @@ void add_report(CLI::App& app) {
     // No --metrics: the driving sets (with lateral control when a run steers freely), or
     // MuJoCo-Image's table.
     if (default_sets) sets = default_metric_sets(runs);
+    if (args->resamples < 1) throw ConfigError("--resamples must be >= 1");
     ReportTable table = build_report(runs);
+    table.bootstrap_seed = args->bootstrap_seed;
+    table.resamples = args->resamples;
     const Spread spread = args->spread == "sd" ? Spread::sd : Spread::interval;
     std::string markdown = render_markdown(table, sets, spread);
     nlohmann::json extra = nlohmann::json::object();
@@ -131,6 +147,9 @@ void add_report(CLI::App& app) {
       HtmlReportOptions o;
       o.episodes = args->episodes;
       o.max_frames = args->replay_frames;
+      o.max_replays = args->max_replays;
+      o.bootstrap_seed = args->bootstrap_seed;
+      o.resamples = args->resamples;
       write_output("--html", args->html, render_html_report(runs, markdown, o));
     } else if (!args->episodes.empty()) {
       throw ConfigError("--episodes chooses the replays of --html; give --html FILE");

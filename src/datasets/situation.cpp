@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/error.hpp"
+#include "data/h5_episode.hpp"
 #include "world/ground_truth.hpp"
 
 namespace cd {
@@ -13,6 +14,19 @@ const std::vector<std::string>& situation_names() {
       "all",           "standing_free", "starting",        "cruising",
       "slowing_red",   "slowing_other", "following",       "standing_blocked"};
   return names;
+}
+
+const std::vector<std::string>& situation_causes() {
+  static const std::vector<std::string> names = {"path_free", "tl_state", "tl_distance",
+                                                 "lead_present", "lead_distance"};
+  return names;
+}
+
+bool records_situation_causes(const std::string& data_dir) {
+  const EpisodeData first = read_episode(list_episode_files(data_dir).front());
+  for (const std::string& name : situation_causes())
+    if (!first.causes.count(name)) return false;
+  return true;
 }
 
 namespace {

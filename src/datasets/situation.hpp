@@ -45,6 +45,12 @@ enum Situation : int {
 };
 const std::vector<std::string>& situation_names();  // indexed by Situation
 
+// The cause series the situations read (path_free, tl_state, tl_distance, lead_present,
+// lead_distance), and whether the first episode of a driving data folder records them all
+// (collect does; reads that one file).
+const std::vector<std::string>& situation_causes();
+bool records_situation_causes(const std::string& data_dir);
+
 // The situations of step t of a driving episode, as a bit mask (bit s = Situation s; kAllFrames
 // always set). Throws DataError naming the file when a needed cause series is missing.
 uint32_t situations_at(const PackedEpisode& ep, int t, double dt, const SituationRules& rules = {});

@@ -123,9 +123,33 @@ torch::Tensor sample_weights(const PolicyBatch& batch, const torch::Tensor& own)
   return own.dim() == 2 ? own * batch.weight.unsqueeze(1) : own * batch.weight;
 }
 
-std::vector<float> situation_weights(const Settings& s, const Dataset& data) {
-  if (s.train.situation_weights == "none") return {};
+Settings resolve_recipe(Settings s, const std::string& domain, bool situation_causes) {
+  const bool driving = domain == kDrivingDomain;
+  if (s.model.pedals == "auto")
+    s.model.pedals = driving && s.model.action_head == "throttle_brake" ? "signed" : "two";
+  if (s.train.situation_weights == "auto")
+    s.train.situation_weights = driving && situation_causes ? "balanced" : "none";
+  return s;
+}
+
+namespace {
+// resolve_recipe for the data folder `dir` (its domain and, for driving, its first episode's
+// causes), before the rest of the data is read.
+Settings resolve_recipe_for(const Settings& s, const std::string& dir) {
+  const std::string domain = data_domain(dir);
+  const bool causes = domain == kDrivingDomain && s.train.situation_weights == "auto" &&
+                      records_situation_causes(dir);
+  return resolve_recipe(s, domain, causes);
+}
+}  // namespace
+
+std::vector<float> situation_weights(const Settings& settings, const Dataset& data) {
   const EpisodeSet& eps = data.episodes();
+  bool causes = !eps.episodes.empty();
+  for (const std::string& name : situation_causes())
+    causes = causes && eps.episodes.front().causes.count(name) > 0;
+  const Settings s = resolve_recipe(settings, eps.domain, causes);
+  if (s.train.situation_weights == "none") return {};
   if (eps.domain != kDrivingDomain)
     throw ConfigError("train.situation_weights = \"" + s.train.situation_weights +
                       "\" needs driving data; " + eps.dir + " holds " + eps.domain + " data");
@@ -135,7 +159,8 @@ std::vector<float> situation_weights(const Settings& s, const Dataset& data) {
     for (const SampleRef& r : data.train())
       classes.push_back(situation_class(situations_at(eps.episodes[r.episode], r.t, eps.dt)));
   } catch (const DataError& e) {
-    throw ConfigError(std::string("train.situation_weights: ") + e.what());
+    throw ConfigError(std::string("train.situation_weights = \"balanced\": ") + e.what() +
+                      " (train with train.situation_weights = \"none\")");
   }
   return balanced_weights(classes, s.train.situation_weight_max);
 }
@@ -168,11 +193,11 @@ PolicyNetsLayout layout_for(const std::string& method, const Settings& s, const 
 TrainSummary train_policy_family(const Settings& settings_in, const TrainRequest& req,
                                  const FamilyMethod& method, const FamilyData& data_in) {
   const auto run_start = Clock::now();
-  const Settings s = effective_settings(req.method, settings_in);
   if (req.out_dir.empty()) throw ConfigError("train: no output folder given (--out)");
   const std::string out = req.out_dir;
   const std::vector<std::string> dirs =
       data_in.dirs.empty() ? std::vector<std::string>{req.data_dir} : data_in.dirs;
+  const Settings s = resolve_recipe_for(effective_settings(req.method, settings_in), dirs.front());
   std::vector<std::string> canonical;
   for (const auto& d : dirs) canonical.push_back(canonical_dir(d));
   const std::string data_dir = join_dirs(canonical);

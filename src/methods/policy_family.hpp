@@ -69,6 +69,12 @@ class PolicyBatcher {
 // situation weights: what its action loss is weighted with.
 torch::Tensor sample_weights(const PolicyBatch& batch, const torch::Tensor& own = {});
 
+// The validated recipe's "auto" values resolved for data of `domain` (model.pedals: "signed"
+// for driving through a throttle_brake head, else "two"; train.situation_weights: "balanced"
+// for driving data that records the situations' causes, else "none"). Explicit values stay as
+// given. Runs record the resolved settings.
+Settings resolve_recipe(Settings s, const std::string& domain, bool situation_causes);
+
 // train.situation_weights = "balanced": the weight of each training sample of `data`
 // (datasets/situation.hpp); empty for "none". Throws ConfigError for data without the causes.
 std::vector<float> situation_weights(const Settings& s, const Dataset& data);

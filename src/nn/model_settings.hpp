@@ -19,16 +19,20 @@ struct ModelSettings {
   // sigmoids) or "signed" (one value throttle - brake in [-1, 1], tanh: the seeds' public code's
   // throttle_brake; a policy can then never press both, and standing's brake label -0.3 is
   // inside the squash's range, not at a saturated end). Steer, when recorded, follows it.
-  std::string pedals = "two";
+  // "auto" (the default, the validated recipe's): "signed" for driving data through a
+  // throttle_brake head, "two" otherwise; a trained run records the value it resolved to.
+  std::string pedals = "auto";
   bool speed_input = false;        // false: the measured speed is zeroed (the seeds' POMDP)
   int features = 256;              // width of the backbone's output and the branches
   double speed_loss_weight = 0.05; // auxiliary speed-prediction head
   double dropout = 0.2;
 };
 
-// model.pedals = "signed" applies to driving data learned through a throttle_brake head.
+// model.pedals = "signed" (or "auto") applies to driving data learned through a throttle_brake
+// head.
 inline bool signed_pedals(const ModelSettings& m, const std::string& domain) {
-  return m.pedals == "signed" && m.action_head == "throttle_brake" && domain == "driving";
+  return (m.pedals == "signed" || m.pedals == "auto") && m.action_head == "throttle_brake" &&
+         domain == "driving";
 }
 // A recorded driving action (throttle, brake[, steer]) as a signed-pedals policy learns it
 // (throttle - brake[, steer]), and back (throttle = max(v, 0), brake = max(-v, 0)).

@@ -632,5 +632,55 @@ TEST(ReportIntervals, RatesGetTheirIntervalComparisonsAndPower) {
   EXPECT_TRUE(has(line, "is not a share of episodes")) << line;
 }
 
+// MuJoCo-Image runs (results.json with `env`, per-episode returns): the IQM of the returns over
+// seeds x episodes with its bootstrap interval, seeded.
+TEST(ReportIntervals, MujocoReturnsGetTheirIqmAndASeededBootstrapInterval) {
+  TempDir dir("cdtest-report-iqm");
+  // 3 seeds x 4 episodes. Pooled and sorted: 1 2 3 | 4 5 6 7 8 9 | 10 11 100; trim_mean(., 0.25)
+  // drops 3 at each end: (4 + 5 + 6 + 7 + 8 + 9) / 6 = 6.5 (the plain mean is 14.67).
+  const std::vector<std::vector<double>> returns = {{1, 5, 9, 100}, {2, 6, 10, 4}, {3, 7, 11, 8}};
+  for (int s = 0; s < 3; ++s) {
+    nlohmann::json eps = nlohmann::json::array();
+    double sum = 0;
+    for (int i = 0; i < 4; ++i) {
+      eps.push_back({{"index", i}, {"seed", i}, {"return", returns[s][i]}, {"length", 100}});
+      sum += returns[s][i];
+    }
+    put(dir / ("runs/s" + std::to_string(s)),
+        {{"agent", "bc-oh"}, {"env", "halfcheetah"}, {"episodes", eps},
+         {"summary", {{"episodes", 4}, {"mean_return", sum / 4}, {"mean_length", 100}}}});
+  }
+  auto cell = [](const std::string& out) {
+    const nlohmann::json doc = nlohmann::json::parse(out);
+    for (const auto& c : doc["cells"])
+      if (c["metric"] == "iqm_return") return c;
+    return nlohmann::json();
+  };
+  CommandResult r = test::run_cli({"report", dir / "runs", "--json"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  const nlohmann::json c = cell(r.out);
+  ASSERT_FALSE(c.is_null()) << r.out;
+  EXPECT_DOUBLE_EQ(c["mean"].get<double>(), 6.5);
+  EXPECT_LE(c["lo"].get<double>(), 6.5);
+  EXPECT_GE(c["hi"].get<double>(), 6.5);
+  EXPECT_LT(c["lo"].get<double>(), c["hi"].get<double>());
+  EXPECT_EQ(c["episodes"], 12);
+  const IqmInterval want = iqm_interval(returns, 0, 10000);
+  EXPECT_DOUBLE_EQ(c["lo"].get<double>(), want.lo);
+  EXPECT_DOUBLE_EQ(c["hi"].get<double>(), want.hi);
+  EXPECT_EQ(test::run_cli({"report", dir / "runs", "--json"}).out, r.out);  // same bytes
+  const nlohmann::json other =
+      cell(test::run_cli({"report", dir / "runs", "--json", "--bootstrap-seed", "7",
+                          "--resamples", "500"}).out);
+  const IqmInterval want7 = iqm_interval(returns, 7, 500);
+  EXPECT_DOUBLE_EQ(other["lo"].get<double>(), want7.lo);
+  EXPECT_DOUBLE_EQ(other["hi"].get<double>(), want7.hi);
+  CommandResult md = test::run_cli({"report", dir / "runs"});
+  ASSERT_EQ(md.exit_code, 0) << md.describe();
+  EXPECT_TRUE(has(md.out, "6.5 [")) << md.out;
+  EXPECT_TRUE(has(md.out, "IQM return")) << md.out;
+  expect_one_line_error(test::run_cli({"report", dir / "runs", "--resamples", "0"}), "resamples");
+}
+
 }  // namespace
 }  // namespace cd

@@ -64,6 +64,7 @@ TEST(DaggerCli, AggregatesExpertLabelledRolloutsAndResumes) {
   Settings es = load_settings(run.config());
   es.collect.seed = derive_seed(11, 1);
   es.collect.episodes = 1;
+  es.collect.hold_s = 0;  // a rollout has a driver: the expert drives from the first step
   es.collect.out = run.dir() / "expert-same-seed";
   CollectOptions quiet;
   quiet.quiet = true;

@@ -93,8 +93,8 @@ TEST(SteeringAgents, TrainedOnSteeringDataTheyDriveAFreeEgo) {
                     .traffic = "empty",
                     .extra = free + "\n[train]\nepochs = 1\nmax_samples = 300\nthreads = 1\n",
                     .suite = {.traffic = "empty", .scenarios = {"route"}}});
-  EXPECT_EQ(test::read_json(bc.run() + "/checkpoint.json")["input"]["action_output"], "sigmoid_tanh")
-      << "steer in [-1, 1] after throttle and brake in [0, 1]";
+  EXPECT_EQ(test::read_json(bc.run() + "/checkpoint.json")["input"]["action_output"], "tanh")
+      << "the default signed pedals: throttle - brake in [-1, 1], then steer in [-1, 1]";
   bc.eval("eval");
   json res = bc.results("eval");
   ASSERT_EQ(res["episodes"].size(), 1u);

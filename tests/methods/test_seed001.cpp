@@ -83,6 +83,7 @@ Settings tiny_settings() {
   s.model.history = 3;
   s.model.history_stride = 1;
   s.model.dropout = 0;
+  s.model.pedals = "two";  // the mechanics below by two pedals (signed: test_pedals.cpp)
   s.train.batch_size = 8;
   s.train.threads = 1;
   s.train.lr = 1e-3;

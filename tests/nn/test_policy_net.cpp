@@ -126,6 +126,7 @@ TEST(PolicyNet, LayoutsSquashSteerAndMujocoActionsSigned) {
   ModelSettings model;
   model.features = 16;
   model.history = 2;
+  model.pedals = "two";  // as recorded (signed pedals: test_pedals.cpp)
   ResidualSettings residual;
   residual.memory_target = "action";
   residual.branches = 1;

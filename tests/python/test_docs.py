@@ -70,8 +70,8 @@ class Docs(unittest.TestCase):
                              "`build/causaldrive config --reference > docs/configuration.md`")
         # It names every table and key a config may hold, with the built-in defaults.
         self.assertIn("## [train]", r.stdout)
-        self.assertIn("| `situation_weights` | text | `\"none\"` | `\"none\"`, `\"balanced\"` |",
-                      r.stdout)
+        self.assertIn("| `situation_weights` | text | `\"auto\"` | `\"auto\"`, `\"none\"`, "
+                      "`\"balanced\"` |", r.stdout)
 
 
 if __name__ == "__main__":

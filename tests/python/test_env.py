@@ -59,7 +59,8 @@ class DrivingEnvTest(TempDirCase):
 
     def test_collect_oracle_same_observations_and_expert_labels(self):
         """Same seed, same observations as `causaldrive collect`; info's expert_action is the
-        recorded label (files read with h5py)."""
+        recorded label (files read with h5py). collect.hold_s (1 s by default) holds the ego
+        braked at the start, marked by the noise mask: the env is driven the same way."""
         config = write_config(self.dir, "regular")
         out = os.path.join(self.dir, "data")
         cli("collect", "--config", config, "--episodes", 1, "--seed", 11, "--out", out)
@@ -67,6 +68,7 @@ class DrivingEnvTest(TempDirCase):
         with h5py.File(path, "r") as f:
             bev, action = f["bev"][()], f["action"][()]
             speed, command = f["speed"][()], f["command"][()]
+            held = f["noise"][()]
             seed = int(f.attrs["seed"])
             outcome = f.attrs["outcome"].decode()
         env = causaldrive.make("town-a", config=config)
@@ -79,11 +81,16 @@ class DrivingEnvTest(TempDirCase):
                 self.assertEqual(obs["command"], command[t])
                 self.assertEqual(info["expert_action"].dtype, np.float64)
                 np.testing.assert_array_equal(info["expert_action"].astype(np.float32), action[t])
-                obs, _, terminated, truncated, info = env.step(info["expert_action"])
+                act = info["expert_action"].copy()
+                if held[t]:
+                    act[0], act[1] = 0.0, 1.0  # the hold: braked, whatever the label says
+                obs, _, terminated, truncated, info = env.step(act)
                 t += 1
                 if terminated or truncated:
                     break
             self.assertEqual(t, len(bev))
+            self.assertEqual(int(held[:10].sum()), 10)  # the first second, at dt 0.1
+            self.assertEqual(int(held.sum()), 10)
             # collect names every episode that ran out of time "timeout"; eval names its class.
             ended = info["outcome"] if info["outcome"] in ("success", "collision", "offroad") \
                 else "timeout"

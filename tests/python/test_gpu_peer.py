@@ -38,10 +38,11 @@ class PeerTest(unittest.TestCase):
         return last_json(cpp.stdout), last_json(peer.stdout)
 
     def test_same_network_in_both(self):
-        for backbone, params in (("small", 968841), ("resnet34", 22282505)):
+        for backbone, params in (("small", 967813), ("resnet34", 22281477)):
             cpp, peer = self.run_both(backbone)
             # The count by hand for the small CNN: convs 32*32*16 + 32*64*4 + 64*128*4 + 128*32,
-            # BatchNorms 2*(32+64+128+32), fc 512*256+256, the CILRS head and speed head.
+            # BatchNorms 2*(32+64+128+32), fc 512*256+256, the CILRS head (one signed-pedals
+            # output per branch, the default) and speed head.
             self.assertEqual(cpp["parameters"], params, backbone)
             self.assertEqual(peer["parameters"], cpp["parameters"], backbone)
             self.assertGreater(cpp["samples_per_s"], 0)

@@ -23,13 +23,14 @@ inline Settings tiny_family_settings() {
   return s;
 }
 
-// Trains `method` on dir/data into dir/name; returns the run folder.
+// Trains `method` on dir/DATA (default "data") into dir/name; returns the run folder.
 inline std::string train_tiny_run(const TempDir& dir, const std::string& method,
                                   const std::string& name,
-                                  const Settings& s = tiny_family_settings()) {
+                                  const Settings& s = tiny_family_settings(),
+                                  const std::string& data = "data") {
   TrainRequest req;
   req.method = method;
-  req.data_dir = dir / "data";
+  req.data_dir = dir / data;
   req.out_dir = dir / name;
   req.quiet = true;
   train_method(s, req);
