@@ -285,12 +285,19 @@ json replay_json(const RunResult& run, const ReplayPick& pick, const HtmlReportO
     static const std::vector<float> none;
     auto pf = d.causes.find("path_free");
     const long mark = failure_step(pick.outcome, d.speed, pf == d.causes.end() ? none : pf->second);
+    // What held the path when the final standstill began (the episode's taxonomy record).
+    std::string cause;
+    for (const RunEpisode& e : run.episodes)
+      if (e.index == pick.episode && !e.stop_cause.empty()) cause = e.stop_cause;
+    std::replace(cause.begin(), cause.end(), '_', ' ');
+    const std::string standstill =
+        pick.outcome + ": the standstill starts" + (cause.empty() ? "" : " (path: " + cause + ")");
     r.update({{"dt", meta.dt}, {"steps", steps}, {"stride", stride}, {"series", list},
               {"causes", causes},
               {"mark", mark < 0 ? json(nullptr) : json(mark / stride)},
               {"mark_label", pick.outcome == "collision" || pick.outcome == "offroad"
                                  ? pick.outcome
-                                 : pick.outcome + ": the standstill starts"}});
+                                 : standstill}});
   }
   r.update({{"frames", frames}, {"time", time}, {"step", shown}});
   return r;
@@ -342,11 +349,12 @@ const char* kScript = R"js(
     slider.max = String(n - 1);
     const x = function (i) { return PAD + (W - 2 * PAD) * (n > 1 ? i / (n - 1) : 0); };
     // Each series on its own range [lo, hi] (symmetric about zero: zero is the middle line).
-    const y = function (v, s) {
+    const y = function (v, s) {  // the curves above the two strips
       const u = Math.max(0, Math.min(1, (v - s.lo) / (s.hi - s.lo)));
-      return PAD + (H - 2 * PAD) * (1 - u);
+      return PAD + (H - 2 * PAD - 18) * (1 - u);
     };
-    svg.appendChild(el("line", {x1: PAD, x2: W - PAD, y1: H / 2, y2: H / 2, stroke: "#ccc"}));
+    const MID = PAD + (H - 2 * PAD - 18) / 2;  // zero of the symmetric series
+    svg.appendChild(el("line", {x1: PAD, x2: W - PAD, y1: MID, y2: MID, stroke: "#ccc"}));
     let lx = PAD;
     for (const s of data.series) {
       let pts = "";
@@ -365,6 +373,23 @@ const char* kScript = R"js(
       t.textContent = data.mark_label + " (" + data.time[data.mark].toFixed(1) + " s)";
       svg.appendChild(t);
     }
+    // Two strips under the curves: the light ahead and whether the path is free, step by step.
+    const LIGHT = {0: "none", 1: "red", 2: "yellow", 3: "green", 4: "green (yield)"};
+    const LIGHT_COLOUR = {1: "#e15759", 2: "#edc948", 3: "#59a14f", 4: "#8cd17d"};
+    function strip(values, top, colour_of, name) {
+      if (!values) return;
+      const w = (W - 2 * PAD) / Math.max(1, n - 1);
+      for (let k = 0; k < n; k++) {
+        const c = colour_of(values[k]);
+        if (c) svg.appendChild(el("rect", {x: (x(k) - w / 2).toFixed(1), y: top, width: (w + 0.3).toFixed(2),
+                                           height: 6, fill: c, class: "strip", "data-strip": name}));
+      }
+      const t = el("text", {x: W - PAD + 3, y: top + 6, "font-size": 9, fill: "#555"});
+      t.textContent = name;
+      svg.appendChild(t);
+    }
+    strip(data.causes.tl_state, H - PAD - 14, function (v) { return LIGHT_COLOUR[v]; }, "light");
+    strip(data.causes.path_free, H - PAD - 6, function (v) { return v > 0.5 ? "#59a14f" : "#bbb"; }, "free");
     const cursor = el("line", {x1: x(0), x2: x(0), y1: PAD / 2, y2: H - PAD / 2, class: "cursor"});
     svg.appendChild(cursor);
     let i = 0, timer = null;
@@ -377,7 +402,12 @@ const char* kScript = R"js(
       sec.setAttribute("data-frame", String(i));
       let text = "t " + data.time[i].toFixed(2) + " s (step " + data.step[i] + " of " + data.steps + ")";
       for (const s of data.series) text += "\n" + s.label.padEnd(18) + s.values[i].toFixed(3);
-      for (const c in data.causes) text += "\n" + c.padEnd(18) + data.causes[c][i];
+      for (const c in data.causes) {
+        const v = data.causes[c][i];
+        const word = c === "tl_state" ? LIGHT[v] : c === "path_free" ? (v > 0.5 ? "free" : "blocked")
+                   : c === "ped_on_path" ? (v > 0.5 ? "yes" : "no") : v;
+        text += "\n" + (c === "tl_state" ? "light" : c).padEnd(18) + (word === undefined ? v : word);
+      }
       if (data.mark !== null && i >= data.mark) text += "\n>> " + data.mark_label;
       values.textContent = text;
     }

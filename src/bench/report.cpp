@@ -387,8 +387,13 @@ RunResult load_result(const std::string& path) {
       ep.task = e.value("task", e.value("index", 0));
       ep.outcome = e.value("outcome", "");
       ep.collision_kind = e.value("collision_kind", "");
-      if (auto t = e.find("taxonomy"); t != e.end() && t->is_object())
+      ep.index = e.value("index", static_cast<int>(r.episodes.size()));
+      if (auto t = e.find("taxonomy"); t != e.end() && t->is_object()) {
+        ep.taxonomy = true;
         ep.paper_inertia = t->value("paper_inertia", false);
+        if (auto c = t->find("last_stop_cause"); c != t->end() && c->is_string())
+          ep.stop_cause = c->get<std::string>();
+      }
       if (auto r = e.find("return"); r != e.end() && r->is_number()) ep.ret = r->get<double>();
       r.episodes.push_back(ep);
     }
@@ -465,9 +470,13 @@ std::optional<SeedRuns> seed_runs(const std::vector<const RunResult*>& runs,
                                   const std::string& key) {
   const EpisodeIndicator counts = episode_indicator(key);
   if (!counts || runs.empty()) return std::nullopt;
+  // Seed 000's inertia is in the taxonomy's fields: older records cannot give it per episode.
+  const bool needs_taxonomy = key.rfind("paper_", 0) == 0;
   SeedRuns seeds;
   for (const RunResult* r : runs) {
     if (r->mujoco || r->episodes.empty()) return std::nullopt;
+    // A rate the run's summary does not hold (a class its records predate) gets no interval.
+    if (auto v = r->summary.find(key); v == r->summary.end() || !v->second) return std::nullopt;
     // The episodes must be the ones its summary counts.
     auto counted = r->summary.find("episodes");
     if (counted == r->summary.end() || !counted->second ||
@@ -476,6 +485,7 @@ std::optional<SeedRuns> seed_runs(const std::vector<const RunResult*>& runs,
     std::map<int, std::pair<double, int>> by_task;  // task -> (count, trials)
     for (const RunEpisode& e : r->episodes) {
       if (e.outcome.empty() || e.outcome == "infrastructure_failure") return std::nullopt;
+      if (needs_taxonomy && !e.taxonomy) return std::nullopt;
       auto& [hits, trials] = by_task[e.task];
       hits += counts(e) ? 1.0 : 0.0;
       ++trials;

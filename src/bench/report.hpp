@@ -26,6 +26,9 @@ struct RunEpisode {
   int task = 0;
   std::string outcome, collision_kind;
   bool paper_inertia = false;
+  bool taxonomy = false;  // the record has the taxonomy's fields (paper_inertia among them)
+  int index = 0;          // the episode's index in its run (its recording's number)
+  std::string stop_cause;  // taxonomy.last_stop_cause: what held the path when it last stopped
   double ret = 0;
 };
 

@@ -682,5 +682,43 @@ TEST(ReportIntervals, MujocoReturnsGetTheirIqmAndASeededBootstrapInterval) {
   expect_one_line_error(test::run_cli({"report", dir / "runs", "--resamples", "0"}), "resamples");
 }
 
+// Seed 000's inertia lives in the taxonomy's fields: records from before the taxonomy give
+// paper_error_rate no interval (their episodes cannot say it), newer ones do; a class the
+// summary does not hold gets none either.
+TEST(ReportIntervals, PaperRatesNeedTheTaxonomysFields) {
+  TempDir dir("cdtest-report-paper");
+  for (int s = 0; s < 3; ++s) {
+    nlohmann::json old = with_episodes("old", "town-a-regular", {{"success"}, {"collision"}, {"inertia"}});
+    old["summary"]["paper_error_rate"] = 2.0 / 3;
+    put(dir / ("runs/old/seed" + std::to_string(s)), old);
+    nlohmann::json now = with_episodes("new", "town-a-regular", {{"success"}, {"collision"}, {"stuck"}});
+    now["summary"]["paper_error_rate"] = 2.0 / 3;
+    now["summary"]["stuck_rate"] = 1.0 / 3;
+    for (auto& e : now["episodes"]) e["taxonomy"] = {{"paper_inertia", e["outcome"] == "stuck"}};
+    now["episodes"][1]["collision_kind"] = "vehicle";
+    put(dir / ("runs/new/seed" + std::to_string(s)), now);
+  }
+  CommandResult r = test::run_cli({"report", dir / "runs", "--json"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  const nlohmann::json doc = nlohmann::json::parse(r.out);
+  int checked = 0;
+  for (const auto& c : doc["cells"]) {
+    if (c["metric"] == "paper_error_rate") {
+      EXPECT_EQ(c.contains("lo"), c["label"] == "new") << c;
+      if (c["label"] == "new") {
+        EXPECT_DOUBLE_EQ(c["mean"].get<double>(), 2.0 / 3);
+      }
+      ++checked;
+    }
+    if (c["metric"] == "restart_stall_rate") {
+      EXPECT_FALSE(c.contains("lo")) << c;  // not in the summary
+    }
+    if (c["metric"] == "stuck_rate" && c["label"] == "new") {
+      EXPECT_TRUE(c.contains("lo")) << c;
+    }
+  }
+  EXPECT_EQ(checked, 2) << r.out;
+}
+
 }  // namespace
 }  // namespace cd
