@@ -665,15 +665,23 @@ ComparisonReport render_comparison(const ReportTable& table, const std::string& 
                       "success_rate, collision_rate, copycat_rate)");
   const auto ra = runs_by_column(table, a, key), rb = runs_by_column(table, b, key);
   std::vector<SeedRuns> all_a, all_b;
+  // Success is the one rate where more is better; for the failure rates a lower rate wins.
+  const bool higher_better = key == "success_rate";
+  auto judged = [higher_better](Comparison c) {
+    if (!higher_better && c.verdict != Verdict::not_resolved)
+      c.verdict = c.verdict == Verdict::a_better ? Verdict::b_better : Verdict::a_better;
+    return c;
+  };
   std::string md = "## " + a + " vs " + b + ": " + key + " (A - B in points, paired 95% "
-                   "interval; P(A > B) as rliable)\n\n| condition | A | B | A - B [95%] | "
-                   "P(A > B) | verdict |\n|---|---:|---:|---:|---:|---|\n";
+                   "interval; P(A > B) as rliable, the chance that A's rate is the higher; " +
+                   (higher_better ? "higher" : "lower") + " is better)\n\n| condition | A | B | "
+                   "A - B [95%] | P(A > B) | verdict |\n|---|---:|---:|---:|---:|---|\n";
   nlohmann::json conditions = nlohmann::json::array();
   for (const auto& [column, sa] : ra) {
     auto jt = rb.find(column);
     if (jt == rb.end() || sa.front().per_task.size() != jt->second.front().per_task.size())
       continue;
-    const Comparison c = compare(sa, jt->second);
+    const Comparison c = judged(compare(sa, jt->second));
     const Interval ia = rate_interval(sa), ib = rate_interval(jt->second);
     md += "| " + column + " | " + pct(ia.mean) + " | " + pct(ib.mean) + " | " +
           pct(c.difference) + " [" + pct(c.lo) + ", " + pct(c.hi) + "] | " +
@@ -691,14 +699,15 @@ ComparisonReport render_comparison(const ReportTable& table, const std::string& 
   if (all_a.empty())
     throw ConfigError("--compare: " + a + " and " + b + " share no condition whose runs hold "
                       "their episodes on the same tasks");
-  nlohmann::json out = {{"a", a}, {"b", b}, {"metric", key}, {"conditions", conditions}};
+  nlohmann::json out = {{"a", a}, {"b", b}, {"metric", key}, {"higher_is_better", higher_better},
+                        {"conditions", conditions}};
   // Over conditions: only when each label has as many seeds in every condition.
   bool same_seeds = true;
   for (size_t k = 1; k < all_a.size(); ++k)
     same_seeds = same_seeds && all_a[k].size() == all_a[0].size() &&
                  all_b[k].size() == all_b[0].size();
   if (all_a.size() > 1 && same_seeds) {
-    const Comparison c = compare(all_a, all_b);
+    const Comparison c = judged(compare(all_a, all_b));
     md += "| over " + std::to_string(all_a.size()) + " conditions | | | " + pct(c.difference) +
           " [" + pct(c.lo) + ", " + pct(c.hi) + "] | " + format_number(c.p_improvement, "%.2f") +
           " | " + verdict_text(c.verdict) + " |\n";

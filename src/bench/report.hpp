@@ -170,7 +170,8 @@ std::string render_markdown(const ReportTable& table, const std::vector<MetricSe
 // `report --compare A B`: A - B in `key` (a rate) per column where both labels have runs with
 // episodes, and over those columns (the k-th run of a label in each column, in path order, is
 // its k-th training seed), with the paired 95% interval, P(A > B) and the verdict
-// (bench/intervals.hpp: compare). Markdown, and the same as JSON. Throws ConfigError for a
+// (bench/intervals.hpp: compare). The verdict names the better label: the higher rate for
+// success_rate, the lower one for every failure rate (collision, error, copycat, ...). Markdown, and the same as JSON. Throws ConfigError for a
 // label without runs, a key that is not a rate, or no column where both can be compared.
 struct ComparisonReport {
   std::string markdown;

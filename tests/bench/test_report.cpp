@@ -623,6 +623,30 @@ TEST(ReportIntervals, RatesGetTheirIntervalComparisonsAndPower) {
     }
   EXPECT_TRUE(interval) << c.out;
 
+  // A failure rate: the lower one is better, so the library's "A higher" is "B better".
+  auto collisions_of = [](const std::vector<std::vector<std::vector<std::string>>>& all) {
+    SeedRuns runs;
+    for (const auto& seed : all) {
+      SeedOutcomes o;
+      o.trials = 2;
+      for (const auto& task : seed)
+        o.per_task.push_back((task[0] == "collision") * 0.5 + (task[1] == "collision") * 0.5);
+      runs.push_back(o);
+    }
+    return runs;
+  };
+  CommandResult cc = test::run_cli({"report", dir / "runs", "--metrics", "outcomes", "--compare",
+                                    "A", "B", "--compare-metric", "collision_rate", "--json"});
+  ASSERT_EQ(cc.exit_code, 0) << cc.describe();
+  const nlohmann::json jc = nlohmann::json::parse(cc.out)["compare"];
+  const Comparison raw = compare(collisions_of(a_seeds), collisions_of(b_seeds));
+  ASSERT_NE(raw.verdict, Verdict::not_resolved) << "the case should resolve";
+  EXPECT_FALSE(jc["higher_is_better"].get<bool>());
+  EXPECT_DOUBLE_EQ(jc["conditions"][0]["difference"].get<double>(), raw.difference);
+  EXPECT_EQ(jc["conditions"][0]["verdict"],
+            verdict_text(raw.verdict == Verdict::a_better ? Verdict::b_better : Verdict::a_better));
+  EXPECT_TRUE(j["compare"]["higher_is_better"].get<bool>());
+
   std::string line = expect_one_line_error(
       test::run_cli({"report", dir / "runs", "--compare", "A", "C"}), "unknown label");
   EXPECT_TRUE(has(line, "no run is labelled 'C'")) << line;
