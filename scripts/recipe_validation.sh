@@ -97,7 +97,11 @@ run_variant() {
   data=$(data_of "$label" "$config")
   for s in $SEEDS; do
     for m in $METHODS; do
-      local run=$OUT/train/$label/seed$s/$m
+      local run=$OUT/train/$label/seed$s/$m kept=0
+      for kind in regular dense; do
+        [[ -f $(kept_of "$OUT/eval/$label/seed$s/$m/$kind")/results.json ]] && kept=$((kept + 1))
+      done
+      [[ $kept == 2 ]] && continue  # both evaluations kept: nothing to train
       [[ -f $run/best.pt ]] || "$CD" train --config "$config" --method "$m" --data "$data" \
         --seed "$s" --out "$run"
       for kind in regular dense; do

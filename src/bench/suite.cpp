@@ -60,6 +60,18 @@ const std::vector<SuiteRecipe>& builtin_suite_recipes() {
     // The adaptation town (seed 000's Table 3): never trained on except few-shot.
     seed = 1100;
     for (const char* traffic : {"regular", "stopgo"}) v.push_back(recipe("town-c", traffic, seed++));
+    // The verdicts' test suites (docs/protocol.md): 100 tasks x 1 trial per condition of seed
+    // 001's tables 7-9, drawn once with their own seeds, apart from every validation suite.
+    seed = 4701;
+    for (const char* town : {"town-a", "town-b"})
+      for (const char* traffic : {"regular", "dense"}) {
+        SuiteRecipe r = recipe(town, traffic, seed++);
+        r.name = "verdicts-" + r.name;
+        r.description += "; 100 tasks, the verdicts' test suite (docs/protocol.md)";
+        r.tasks = 100;
+        r.trials = 1;
+        v.push_back(r);
+      }
     return v;
   }();
   return recipes;

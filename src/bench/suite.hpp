@@ -36,8 +36,9 @@ struct SuiteRecipe {
   std::vector<std::string> scenarios = {"route"};  // task i has scenarios[i % size]
 };
 
-// The recipes of the built-in suites: {town-a, town-b} x {empty, regular, dense, stopgo} and
-// quickstart.
+// The recipes of the built-in suites: {town-a, town-b} x {empty, regular, dense, stopgo},
+// quickstart, town-c's, and the verdicts' 100-task test suites verdicts-{town-a,town-b}-{regular,
+// dense}.
 const std::vector<SuiteRecipe>& builtin_suite_recipes();
 std::vector<std::string> builtin_suite_names();
 

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
 #include <string>
 
 #include "../support/test_support.hpp"
@@ -22,7 +23,11 @@ TEST(BenchSuites, BuiltInSuitesMatchTheContract) {
     EXPECT_EQ(s.name, name);
     ASSERT_FALSE(s.tasks.empty());
     const bool stopgo = name.size() > 7 && name.substr(name.size() - 7) == "-stopgo";
-    if (name != "quickstart") {
+    const bool verdicts = name.rfind("verdicts-", 0) == 0;
+    if (verdicts) {
+      EXPECT_EQ(s.tasks.size(), 100u);
+      EXPECT_EQ(s.trials, 1);
+    } else if (name != "quickstart") {
       EXPECT_EQ(s.tasks.size(), 25u);
       EXPECT_EQ(s.trials, 3);
     }
@@ -43,6 +48,20 @@ TEST(BenchSuites, BuiltInSuitesMatchTheContract) {
     }
   }
   EXPECT_THROW(load_suite("town-z-regular"), ConfigError);
+}
+
+// Every built-in task is its own episode: no traffic seed repeats across the suites (the
+// verdicts' test suites are drawn apart from the 25-task ones).
+TEST(BenchSuites, NoTwoBuiltInTasksShareATrafficSeed) {
+  std::map<uint64_t, std::string> seen;
+  for (const std::string& name : builtin_suite_names()) {
+    const Suite suite = load_suite(name);
+    for (size_t i = 0; i < suite.tasks.size(); ++i) {
+      auto [it, fresh] = seen.emplace(suite.tasks[i].traffic_seed, name);
+      EXPECT_TRUE(fresh) << name << " task " << i << " repeats a task of " << it->second;
+    }
+  }
+  EXPECT_GE(seen.size(), 400u);
 }
 
 TEST(BenchSuites, RegeneratingGivesTheFilesInTheRepo) {
