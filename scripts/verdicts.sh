@@ -8,7 +8,8 @@
 #                                # variant per method -> configs/verdicts/METHOD.toml, and
 #                                # results/verdicts/tuning.md
 #
-# Steps run in the order given; an unknown step is refused before any runs. Knobs:
+# Several steps run in order (`scripts/verdicts.sh tune choose`); an unknown step is refused
+# before any of them runs. Knobs:
 #   CD       the causaldrive binary   (default: build/causaldrive)
 #   METHODS  the methods tuned        (default: the seven of section 3)
 #   VAL, CONFIGS, RESULTS  choose's input and output folders (default: the kept validation
@@ -19,6 +20,8 @@ cd "$(dirname "$0")/.."
 CD=${CD:-build/causaldrive}
 METHODS=${METHODS:-"residual bc-oh keyframe dagger bc-so hd fca"}
 VARIANTS="old signed hold-balanced signed-hold-balanced"
+OUT=${OUT:-runs/verdicts}
+source scripts/paper_lib.sh  # run_steps
 VAL=${VAL:-results/residual_paper/recipe/eval}  # recipe_validation.sh's kept evaluations
 CONFIGS=${CONFIGS:-configs/verdicts}             # choose's configs
 RESULTS=${RESULTS:-results/verdicts}             # choose's tuning.md
@@ -102,11 +105,4 @@ run_step() {
   esac
 }
 
-for step in "$@"; do
-  case $step in
-    tune | choose) ;;
-    *) echo "verdicts.sh: unknown step '$step' (tune, choose)" >&2; exit 2 ;;
-  esac
-done
-[[ $# -gt 0 ]] || { awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 2; }
-for step in "$@"; do run_step "$step"; done
+run_steps "tune choose" "$@"

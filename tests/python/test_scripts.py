@@ -394,5 +394,54 @@ class ConfigVariantTest(TempDirCase):
         self.assertFalse(os.path.exists(out))
 
 
+class VerdictsChooseTest(TempDirCase):
+    """scripts/verdicts.sh choose: docs/protocol.md section 6's rule over validation results
+    (highest mean success over the two suites; ties: lower mean collision, then list order)."""
+
+    VARIANTS = ["old", "signed", "hold-balanced", "signed-hold-balanced"]
+
+    def put(self, variant, method, kind, success, collision):
+        d = os.path.join(self.dir, "val", variant, "seed0", method, kind)
+        os.makedirs(d)
+        with open(os.path.join(d, "results.json"), "w") as f:
+            json.dump({"summary": {"success_rate": success, "collision_rate": collision}}, f)
+
+    def test_the_rule_and_its_tie_breaks(self):
+        import tomllib
+        # a: signed-hold-balanced by success. b: signed and hold-balanced tie on success (0.5);
+        # hold-balanced collides less. c: all tie at 0: old, the first. d: a variant missing.
+        for v, (a, b) in zip(self.VARIANTS, [(0.0, 0.2), (0.1, 0.5), (0.2, 0.5), (0.8, 0.4)]):
+            for kind in ("regular", "dense"):
+                self.put(v, "a", kind, a, 0.1)
+                self.put(v, "b", kind, b, 0.3 if v == "signed" else 0.2)
+                self.put(v, "c", kind, 0.0, 0.0)
+                if v != "signed":
+                    self.put(v, "d", kind, 0.9, 0.0)
+        configs, results = os.path.join(self.dir, "configs"), os.path.join(self.dir, "results")
+        r = subprocess.run([os.path.join(SOURCE, "scripts", "verdicts.sh"), "choose"],
+                           env=dict(os.environ, CD=os.path.abspath(BIN), METHODS="a b c d",
+                                    VAL=os.path.join(self.dir, "val"), CONFIGS=configs,
+                                    RESULTS=results, OUT=os.path.join(self.dir, "out")),
+                           capture_output=True, text=True, timeout=120)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        keys = {"old": ("two", 0.0, "none"), "signed": ("signed", 0.0, "none"),
+                "hold-balanced": ("two", 1.0, "balanced"),
+                "signed-hold-balanced": ("signed", 1.0, "balanced")}
+        for method, variant in (("a", "signed-hold-balanced"), ("b", "hold-balanced"),
+                                ("c", "old")):
+            with open(os.path.join(configs, method + ".toml"), "rb") as f:
+                text = f.read()
+            got = tomllib.loads(text.decode())
+            self.assertEqual((got["model"]["pedals"], got["collect"]["hold_s"],
+                              got["train"]["situation_weights"]), keys[variant], method)
+            self.assertIn(('variant "%s"' % variant).encode(), text)
+        self.assertFalse(os.path.exists(os.path.join(configs, "d.toml")))
+        with open(os.path.join(results, "tuning.md")) as f:
+            table = f.read()
+        self.assertIn("| b | hold-balanced | 50.0 / 20.0 | 50.0 / 20.0 | 50.0 | **yes** |", table)
+        self.assertIn("| b | signed | 50.0 / 30.0 | 50.0 / 30.0 | 50.0 |  |", table)
+        self.assertIn("val/signed/seed0/d/regular/results.json", table)
+
+
 if __name__ == "__main__":
     unittest.main()
