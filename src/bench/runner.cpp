@@ -87,10 +87,24 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
   }
   long n = 0;
   const auto wall0 = std::chrono::steady_clock::now();
+  const bool profile = stats && stats->profile;
+  using Clock = std::chrono::steady_clock;
+  Clock::time_point mark;
+  // Adds the time since the last lap to `into` (profile only).
+  auto lap = [&](double* into) {
+    if (!profile) return;
+    const Clock::time_point now = Clock::now();
+    *into += std::chrono::duration<double>(now - mark).count();
+    mark = now;
+  };
+  double ignored = 0;
+  if (profile) mark = Clock::now();
   while (sr.outcome == Outcome::Running) {
     feed.push();
     const Observation& obs = feed.observe();
+    lap(profile ? &stats->sense_s : nullptr);
     Control c = agent.act(obs);
+    lap(profile ? &stats->act_s : nullptr);
     if (record) {
       if (!obs.frames.empty()) {
         pack_planes(obs.frames.back(), record->frame_pixels(), record->channels, seen.data());
@@ -126,9 +140,12 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
       }
       *trace_csv += "\n";
     }
+    lap(&ignored);  // the recording and the trace
     sr = world.step(c);
+    lap(profile ? &stats->world_s : nullptr);
     ++n;
     scorer.observe(world, sr);
+    lap(profile ? &stats->score_s : nullptr);
   }
   if (stats) {
     stats->steps += n;

@@ -50,6 +50,11 @@ struct EvalReport {
 struct LoopStats {
   long steps = 0;
   double seconds = 0;
+  // With `profile` set, where the driving loop's seconds went (bench eval --profile): the
+  // agent's sensor (the BEV rendered and pushed into its history), its act() (inference for a
+  // learned agent), the world's step (ego model, SUMO, checks) and the scorer.
+  bool profile = false;
+  double sense_s = 0, act_s = 0, world_s = 0, score_s = 0;
 };
 
 // What an episode's record says of the episode as it runs, for any loop that drives a World:

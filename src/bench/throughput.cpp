@@ -1,5 +1,6 @@
 #include "bench/throughput.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 
@@ -11,7 +12,9 @@
 #include "bench/runner.hpp"
 #include "bench/suite.hpp"
 #include "collect/expert_episode.hpp"
+#include "core/error.hpp"
 #include "core/rng.hpp"
+#include "inference/policy_runner.hpp"
 #include "methods/method.hpp"
 #include "world/world.hpp"
 
@@ -80,13 +83,15 @@ void bench_world(const Settings& s, long steps, int slices, bool json) {
 // checks) on the first tasks of a suite, in this process, interleaved with the expert:
 // episode i of the agent, then episode i of the expert on the same task, and so on.
 void bench_eval(Settings s, const std::string& agent_name, const std::string& checkpoint,
-                const std::string& suite_name, int episodes, bool json) {
+                const std::string& suite_name, int episodes, bool json, bool profile) {
   Suite suite = load_suite(suite_name);
   s.world.town = suite.town;
   s.world.traffic = suite.traffic;
   World world(s);
+  LoopStats agent_total, expert_total;  // the profile, summed over episodes
   auto episode = [&](const std::string& name, const std::string& ckpt, int i) {
     LoopStats stats;
+    stats.profile = profile;
     auto agent = make_agent(name, ckpt, s, &world);
     run_episode(world, *agent, suite.tasks[static_cast<size_t>(i) % suite.tasks.size()], s,
                 &stats);
@@ -97,7 +102,24 @@ void bench_eval(Settings s, const std::string& agent_name, const std::string& ch
     const LoopStats a = episode(agent_name, checkpoint, i);
     const LoopStats x = episode("expert", "", i);
     m.add(x.steps, x.seconds, a.steps, a.seconds);
+    for (auto [total, one] : {std::pair{&agent_total, &a}, std::pair{&expert_total, &x}}) {
+      total->steps += one->steps;
+      total->seconds += one->seconds;
+      total->sense_s += one->sense_s;
+      total->act_s += one->act_s;
+      total->world_s += one->world_s;
+      total->score_s += one->score_s;
+    }
   }
+  // Microseconds per step of each phase; "other" is the loop's rest (recording, bookkeeping).
+  auto phases = [](const LoopStats& t) {
+    const double us = 1e6 / static_cast<double>(std::max<long>(1, t.steps));
+    return nlohmann::json{{"sense_us", t.sense_s * us}, {"act_us", t.act_s * us},
+                          {"world_us", t.world_s * us}, {"score_us", t.score_s * us},
+                          {"other_us", (t.seconds - t.sense_s - t.act_s - t.world_s -
+                                        t.score_s) * us},
+                          {"step_us", t.seconds * us}};
+  };
   const double rate = m.steps_b / m.seconds_b, expert_rate = m.steps_a / m.seconds_a;
   if (json) {
     nlohmann::json j = {{"agent", agent_name},       {"suite", suite.name},
@@ -105,6 +127,7 @@ void bench_eval(Settings s, const std::string& agent_name, const std::string& ch
                         {"steps_per_s", rate},       {"expert_steps_per_s", expert_rate},
                         {"ratio_to_expert", m.median()}};
     j.update(m.spread_json());
+    if (profile) j["profile"] = {{"agent", phases(agent_total)}, {"expert", phases(expert_total)}};
     j["build"] = build_components();
     std::printf("%s\n", j.dump().c_str());
   } else {
@@ -113,6 +136,87 @@ void bench_eval(Settings s, const std::string& agent_name, const std::string& ch
     std::printf("  %-10s %10.0f steps/s  (%ld steps)\n", agent_name.c_str(), rate, m.steps_b);
     std::printf("  %-10s %10.0f steps/s  (%ld steps)\n", "expert", expert_rate, m.steps_a);
     m.print_spread();
+    if (profile) {
+      std::printf("  us per step    sense      act    world    score    other    total\n");
+      for (auto [name, t] : {std::pair{agent_name, &agent_total},
+                             std::pair{std::string("expert"), &expert_total}}) {
+        const nlohmann::json p = phases(*t);
+        std::printf("  %-10s %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f\n", name.c_str(),
+                    p["sense_us"].get<double>(), p["act_us"].get<double>(),
+                    p["world_us"].get<double>(), p["score_us"].get<double>(),
+                    p["other_us"].get<double>(), p["step_us"].get<double>());
+      }
+    }
+  }
+}
+
+void bench_infer(const std::string& checkpoint, const std::vector<int>& slots, int rounds,
+                 int threads, bool json) {
+  if (checkpoint.empty()) throw ConfigError("bench infer: give --checkpoint");
+  if (slots.empty() || rounds < 1 || threads < 1)
+    throw ConfigError("bench infer: --slots, --rounds and --threads must be >= 1");
+  for (int s : slots)
+    if (s < 1) throw ConfigError("bench infer: every --slots value must be >= 1");
+  set_torch_threads(threads);
+  PolicyRunner runner(checkpoint);
+  const InputFormat& in = runner.checkpoint().input;
+  const int most = *std::max_element(slots.begin(), slots.end());
+  const size_t values = static_cast<size_t>(in.channels) * in.height * in.width;
+  // Seeded observations: driving planes of 0/255, MuJoCo bytes.
+  Rng rng(7);
+  std::vector<std::vector<uint8_t>> frames(static_cast<size_t>(most) * runner.history(),
+                                           std::vector<uint8_t>(values));
+  for (auto& f : frames)
+    for (uint8_t& b : f)
+      b = in.domain == "mujoco" ? static_cast<uint8_t>(rng.uniform(0, 256))
+                                : (rng.uniform(0, 1) < 0.2 ? 255 : 0);
+  std::vector<std::vector<const uint8_t*>> pointers(static_cast<size_t>(most));
+  std::vector<PolicyInput> inputs;
+  for (int r = 0; r < most; ++r) {
+    for (int k = 0; k < runner.history(); ++k)
+      pointers[r].push_back(frames[static_cast<size_t>(r * runner.history() + k)].data());
+    inputs.push_back({pointers[r].data(), 5.0, r % 4, nullptr});
+  }
+  const long per_round = 4L * most;  // observations each loop runs per round
+  std::vector<Interleaved> m(slots.size());
+  runner.run_batch({inputs.front()});  // warm-up
+  for (int round = 0; round < rounds; ++round)
+    for (size_t k = 0; k < slots.size(); ++k) {
+      runner.set_batch_slots(0);
+      auto t0 = Clock::now();
+      for (long i = 0; i < per_round; ++i) runner.run_batch({inputs[static_cast<size_t>(i % most)]});
+      const double one = std::chrono::duration<double>(Clock::now() - t0).count();
+      runner.set_batch_slots(slots[k]);
+      const std::vector<PolicyInput> batch(inputs.begin(), inputs.begin() + slots[k]);
+      const long passes = per_round / slots[k];
+      t0 = Clock::now();
+      for (long i = 0; i < passes; ++i) runner.run_batch(batch);
+      const double batched = std::chrono::duration<double>(Clock::now() - t0).count();
+      m[k].add(per_round, one, passes * slots[k], batched);
+    }
+  nlohmann::json rows = nlohmann::json::array();
+  if (!json)
+    std::printf("inference of %s (%s, %d frames of %dx%dx%d), %d thread(s), %d rounds\n",
+                checkpoint.c_str(), runner.checkpoint().method.c_str(), runner.history(),
+                in.channels, in.height, in.width, threads, rounds);
+  for (size_t k = 0; k < slots.size(); ++k) {
+    const double one = m[k].steps_a / m[k].seconds_a, batched = m[k].steps_b / m[k].seconds_b;
+    if (json) {
+      nlohmann::json r = {{"slots", slots[k]}, {"one_per_s", one}, {"batched_per_s", batched},
+                          {"ratio", m[k].median()}};
+      r.update(m[k].spread_json());
+      rows.push_back(r);
+    } else {
+      std::printf("  one row   %9.0f obs/s (%6.1f us)   %2d slots %9.0f obs/s (%6.1f us)   "
+                  "ratio %.2f\n", one, 1e6 / one, slots[k], batched, 1e6 / batched,
+                  m[k].median());
+    }
+  }
+  if (json) {
+    nlohmann::json j = {{"checkpoint", checkpoint}, {"method", runner.checkpoint().method},
+                        {"threads", threads}, {"rounds", rounds}, {"slots", rows}};
+    j["build"] = build_components();
+    std::printf("%s\n", j.dump().c_str());
   }
 }
 

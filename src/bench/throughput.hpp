@@ -2,6 +2,7 @@
 // The driving benchmarks of `causaldrive bench` (world, eval): steps/s measured as
 // interleaved ratios in one process (bench/interleaved.hpp), printed as text or one JSON line.
 #include <string>
+#include <vector>
 
 #include "app/settings.hpp"
 
@@ -10,8 +11,16 @@ namespace cd {
 // Bare SUMO stepping against the full loop (ego model, expert, BEV, checks, recording).
 void bench_world(const Settings& s, long steps, int slices, bool json);
 
-// An agent's closed-loop steps/s against the expert's on the first tasks of a suite.
+// An agent's closed-loop steps/s against the expert's on the first tasks of a suite; with
+// `profile`, the microseconds per step of each phase of the loop (LoopStats).
 void bench_eval(Settings s, const std::string& agent_name, const std::string& checkpoint,
-                const std::string& suite_name, int episodes, bool json);
+                const std::string& suite_name, int episodes, bool json, bool profile = false);
+
+// Inference alone: a learned agent's network on seeded random observations, one row at a time
+// (closed loop today) against batches of each size in `slots` (PolicyRunner's fixed slots),
+// interleaved round by round; observations/s and the ratio to one row at a time. `threads`:
+// torch's intra-op threads (closed loop: 1).
+void bench_infer(const std::string& checkpoint, const std::vector<int>& slots, int rounds,
+                 int threads, bool json);
 
 }  // namespace cd

@@ -45,9 +45,29 @@ void add_bench(CLI::App& app) {
   ev->add_option("--suite", *suite, "suite whose first tasks are driven");
   ev->add_option("--episodes", *episodes, "episodes per agent")->check(CLI::PositiveNumber);
   ev->add_flag("--json", *json, "print one JSON object");
+  auto profile = std::make_shared<bool>(false);
+  ev->add_flag("--profile", *profile,
+               "also say where a step's time goes: the agent's sensor (BEV and history), its "
+               "act (inference), the world's step, the scorer, the rest");
   ev->callback([=] {
-    bench_eval(settings_from(*config), *agent, *checkpoint, *suite, *episodes, *json);
+    bench_eval(settings_from(*config), *agent, *checkpoint, *suite, *episodes, *json, *profile);
   });
+
+  auto slot_list = std::make_shared<std::vector<int>>(std::vector<int>{1, 2, 4, 8, 16});
+  auto rounds = std::make_shared<int>(20);
+  auto threads = std::make_shared<int>(1);
+  CLI::App* inf = bench->add_subcommand(
+      "infer", "a learned agent's inference alone: one observation at a time against fixed "
+               "batches (interleaved)");
+  inf->add_option("--checkpoint", *checkpoint, "training output folder of a policy-family run")
+      ->required();
+  inf->add_option("--slots", *slot_list, "batch sizes compared with one row at a time")
+      ->delimiter(',');
+  inf->add_option("--rounds", *rounds, "interleaved rounds")->check(CLI::PositiveNumber);
+  inf->add_option("--threads", *threads, "torch threads (closed loop: 1)")
+      ->check(CLI::PositiveNumber);
+  inf->add_flag("--json", *json, "print one JSON object");
+  inf->callback([=] { bench_infer(*checkpoint, *slot_list, *rounds, *threads, *json); });
 
   auto env_args = std::make_shared<mj::EnvBenchArgs>();
   CLI::App* en = bench->add_subcommand(

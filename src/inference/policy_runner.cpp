@@ -26,8 +26,10 @@ struct PolicyRunner::Impl {
   std::unique_ptr<PolicyNets> nets;
   std::vector<float> action;
   std::vector<float> learned;  // signed pedals: the network's output before decoding
-  // Preallocated inputs: one observation, filled in place every step.
+  // Preallocated inputs of `rows` observations, filled in place every step (run(): one).
   torch::Tensor image, speed, command;
+  int rows = 0;
+  int slots = 0;  // set_batch_slots
   size_t frame_values = 0;
   std::string wanted_device = "cpu";  // eval.device, resolved by place() at the first run
   bool placed = false;
@@ -36,13 +38,17 @@ struct PolicyRunner::Impl {
   // Moves the networks to the wanted device, once.
   void place();
 
-  // Writes one observation into the preallocated inputs.
-  void fill(const uint8_t* const* frames, double speed_value, int command_value);
-  // The action of the network that acts (B = 1); with `feature_map`, also its backbone's last
-  // convolutional map and which module that is.
-  torch::Tensor act(const float* previous, torch::Tensor* feature_map, std::string* module);
-  // Keeps the action components and turns them into controls.
-  PolicyStep step(torch::Tensor a, bool target_speed_head);
+  // Sizes the preallocated inputs to n observations.
+  void resize(int n);
+  // Writes one observation into row `row` of the preallocated inputs.
+  void fill(int row, const uint8_t* const* frames, double speed_value, int command_value);
+  // The actions of the network that acts (one row per observation); previous[r]: row r's
+  // previous action or null. With `feature_map`, also its backbone's last convolutional map and
+  // which module that is.
+  torch::Tensor act(const std::vector<const float*>& previous, torch::Tensor* feature_map,
+                    std::string* module);
+  // Keeps the action components of one row (A values, on the CPU) and turns them into controls.
+  PolicyStep step(const float* v, int64_t n, bool target_speed_head);
 };
 
 PolicyRunner::PolicyRunner(const std::string& dir, const std::string& expected_method,
@@ -72,9 +78,16 @@ PolicyRunner::PolicyRunner(const std::string& dir, const std::string& expected_m
   m.nets->load_bytes(bytes, torch::kCPU, path);
   m.nets->set_training(false);
   m.frame_values = static_cast<size_t>(in.channels) * in.height * in.width;
-  m.image = torch::zeros({1, in.history * in.channels, in.height, in.width});
-  m.speed = torch::zeros({1, 1});
-  m.command = torch::zeros({1}, torch::TensorOptions().dtype(torch::kInt64));
+  m.resize(1);
+}
+
+void PolicyRunner::Impl::resize(int n) {
+  if (n == rows) return;
+  const InputFormat& in = ck.input;
+  image = torch::zeros({n, in.history * in.channels, in.height, in.width});
+  speed = torch::zeros({n, 1});
+  command = torch::zeros({n}, torch::TensorOptions().dtype(torch::kInt64));
+  rows = n;
 }
 
 PolicyRunner::~PolicyRunner() = default;
@@ -94,15 +107,16 @@ const std::vector<std::string>& policy_runner_methods() {
   return names;
 }
 
-void PolicyRunner::Impl::fill(const uint8_t* const* frames, double speed_value, int command_value) {
-  float* img = image.data_ptr<float>();
+void PolicyRunner::Impl::fill(int row, const uint8_t* const* frames, double speed_value,
+                              int command_value) {
+  float* img = image.data_ptr<float>() + static_cast<size_t>(row) * ck.input.history * frame_values;
   const FrameLayout layout = ck.input.domain == kMujocoDomain ? FrameLayout::Bytes
                                                               : FrameLayout::BitPlanes;
   for (int k = 0; k < ck.input.history; ++k)
     frame_bytes_to_unit(layout, frames[k], frame_values,
                         img + static_cast<size_t>(k) * frame_values);
-  speed.data_ptr<float>()[0] = ck.model.speed_input ? static_cast<float>(speed_value) : 0.0f;
-  command.data_ptr<int64_t>()[0] = std::clamp(command_value, 0, 3);
+  speed.data_ptr<float>()[row] = ck.model.speed_input ? static_cast<float>(speed_value) : 0.0f;
+  command.data_ptr<int64_t>()[row] = std::clamp(command_value, 0, 3);
 }
 
 void PolicyRunner::Impl::place() {
@@ -112,8 +126,8 @@ void PolicyRunner::Impl::place() {
   placed = true;
 }
 
-torch::Tensor PolicyRunner::Impl::act(const float* previous, torch::Tensor* feature_map,
-                                      std::string* module) {
+torch::Tensor PolicyRunner::Impl::act(const std::vector<const float*>& previous,
+                                      torch::Tensor* feature_map, std::string* module) {
   place();
   const PolicyNetsLayout& l = nets->layout;
   // The inputs on the networks' device (the same tensors on the CPU).
@@ -147,27 +161,29 @@ torch::Tensor PolicyRunner::Impl::act(const float* previous, torch::Tensor* feat
     } else {
       // Memory only, residual controller: a_t = a_{t-1} + the predicted a_t - a_{t-1} (head 1),
       // in the space the action is learned in (model.pedals).
-      torch::Tensor prev = torch::zeros({1, l.action_dim});
-      if (previous && signed_pedals(ck.model, ck.input.domain))
-        pedals_to_learned(previous, ck.input.action_dim, prev.data_ptr<float>());
-      else if (previous)
-        std::copy_n(previous, l.action_dim, prev.data_ptr<float>());
+      torch::Tensor prev = torch::zeros({rows, l.action_dim});
+      for (int r = 0; r < rows; ++r) {
+        const float* p = previous[static_cast<size_t>(r)];
+        float* row = prev.data_ptr<float>() + static_cast<size_t>(r) * l.action_dim;
+        if (p && signed_pedals(ck.model, ck.input.domain))
+          pedals_to_learned(p, ck.input.action_dim, row);
+        else if (p)
+          std::copy_n(p, l.action_dim, row);
+      }
       a = prev.to(device) + mem.action.narrow(1, 0, l.action_dim);
     }
   }
   return a;
 }
 
-PolicyStep PolicyRunner::Impl::step(torch::Tensor a, bool target_speed_head) {
-  a = a.detach().to(torch::kCPU).contiguous();
-  const float* v = a.data_ptr<float>();
+PolicyStep PolicyRunner::Impl::step(const float* v, int64_t n, bool target_speed_head) {
   if (!target_speed_head && signed_pedals(ck.model, ck.input.domain)) {
     // throttle - brake[, steer] -> throttle, brake[, steer]
-    learned.assign(v, v + a.size(1));
+    learned.assign(v, v + n);
     action.resize(static_cast<size_t>(ck.input.action_dim));
     pedals_to_recorded(learned.data(), ck.input.action_dim, action.data());
   } else {
-    action.assign(v, v + a.size(1));
+    action.assign(v, v + n);
   }
   v = action.data();
   PolicyStep s;
@@ -183,20 +199,53 @@ PolicyStep PolicyRunner::Impl::step(torch::Tensor a, bool target_speed_head) {
 
 PolicyStep PolicyRunner::run(const uint8_t* const* frames, double speed, int command,
                              const float* previous) {
+  return run_batch({PolicyInput{frames, speed, command, previous}}).front();
+}
+
+void PolicyRunner::set_batch_slots(int slots) {
+  if (slots < 0) throw ConfigError("batch slots must be >= 0");
+  impl_->slots = slots;
+}
+int PolicyRunner::batch_slots() const { return impl_->slots; }
+
+std::vector<PolicyStep> PolicyRunner::run_batch(const std::vector<PolicyInput>& inputs,
+                                                std::vector<std::vector<float>>* actions) {
   Impl& m = *impl_;
-  m.fill(frames, speed, command);
+  const int n = static_cast<int>(inputs.size());
+  if (n < 1) throw ConfigError("run_batch: no observation");
+  const int chunk = m.slots > 0 ? m.slots : n;  // rows per forward pass
+  std::vector<PolicyStep> steps;
+  if (actions) actions->clear();
   torch::InferenceMode inference;
-  return m.step(m.act(previous, nullptr, nullptr), target_speed_head());
+  for (int first = 0; first < n; first += chunk) {
+    const int used = std::min(chunk, n - first);
+    m.resize(chunk);
+    std::vector<const float*> previous;
+    for (int r = 0; r < chunk; ++r) {  // rows past `used`: copies of the chunk's first input
+      const PolicyInput& in = inputs[static_cast<size_t>(first + (r < used ? r : 0))];
+      m.fill(r, in.frames, in.speed, in.command);
+      previous.push_back(in.previous);
+    }
+    const torch::Tensor a =
+        m.act(previous, nullptr, nullptr).detach().to(torch::kCPU).contiguous();
+    for (int r = 0; r < used; ++r) {
+      steps.push_back(m.step(a.data_ptr<float>() + static_cast<size_t>(r) * a.size(1),
+                             a.size(1), target_speed_head()));
+      if (actions) actions->push_back(m.action);
+    }
+  }
+  return steps;
 }
 
 PolicyStep PolicyRunner::run_with_gradient(const uint8_t* const* frames, double speed,
                                            int command, const float* previous,
                                            FeatureMapGradient& out) {
   Impl& m = *impl_;
-  m.fill(frames, speed, command);
+  m.resize(1);
+  m.fill(0, frames, speed, command);
   torch::AutoGradMode grad_on(true);
   torch::Tensor map;
-  torch::Tensor a = m.act(previous, &map, &out.module);
+  torch::Tensor a = m.act({previous}, &map, &out.module);
   // The head's output as one number, unclamped: the target speed, or throttle - brake (signed
   // pedals: their one value).
   torch::Tensor scalar = target_speed_head() || signed_pedals(m.ck.model, m.ck.input.domain)
@@ -212,7 +261,8 @@ PolicyStep PolicyRunner::run_with_gradient(const uint8_t* const* frames, double 
   out.width = static_cast<int>(map.size(3));
   out.activation.assign(map.data_ptr<float>(), map.data_ptr<float>() + map.numel());
   out.gradient.assign(g.data_ptr<float>(), g.data_ptr<float>() + g.numel());
-  return m.step(a, target_speed_head());
+  const torch::Tensor row = a.detach().to(torch::kCPU).contiguous();
+  return m.step(row.data_ptr<float>(), row.size(1), target_speed_head());
 }
 
 }  // namespace cd

@@ -42,6 +42,14 @@ void require_same_frames(const EpisodeSet& set, const InputFormat& in, const std
 // torch's intra-op threads for this process (closed loop: 1, one worker process per core).
 void set_torch_threads(int threads);
 
+// One observation of run_batch(): as run()'s arguments.
+struct PolicyInput {
+  const uint8_t* const* frames = nullptr;
+  double speed = 0;
+  int command = 0;
+  const float* previous = nullptr;
+};
+
 class PolicyRunner {
  public:
   // Reads dir/checkpoint.json and the weights file (best.pt by default), builds the network
@@ -69,6 +77,18 @@ class PolicyRunner {
   // residual controller reads it (a_{t-1} + the predicted residual); null means zeros.
   PolicyStep run(const uint8_t* const* frames, double speed, int command,
                  const float* previous = nullptr);
+  // run() on several observations (one row each, in order); `actions`, when given, receives
+  // each row's last_action(). last_action() is then the last row's.
+  // Slots 0 (the default): one forward pass of exactly these rows. A row's action can then
+  // depend on how many rows ran beside it: libtorch's CPU kernels sum in another order for
+  // some batch sizes (measured, tests/inference/test_policy_batch.cpp: batch 1 and 16 differ
+  // from batch 2-9 in the last bits of some rows). Slots S > 0: every forward pass has exactly
+  // S rows, the inputs in order and the rest padded with copies of the first, so a row's
+  // action depends only on its own observation, never on the batch, its slot or the padding.
+  std::vector<PolicyStep> run_batch(const std::vector<PolicyInput>& inputs,
+                                    std::vector<std::vector<float>>* actions = nullptr);
+  void set_batch_slots(int slots);  // >= 0; run() keeps its one-row pass only at 0
+  int batch_slots() const;
   // run() that also fills `out` (autograd on, so slower than run(); the same action).
   PolicyStep run_with_gradient(const uint8_t* const* frames, double speed, int command,
                                const float* previous, FeatureMapGradient& out);

@@ -257,6 +257,31 @@ TEST(CliBench, WorldJsonHasTheThreeRates) {
   EXPECT_LE(j["ratio_q75"].get<double>(), j["ratio_max"].get<double>());
 }
 
+// bench eval --profile: the phases of a step add up to the step (the rest is "other"), each
+// non-negative; the agent without a network spends almost nothing in act().
+TEST(CliBench, EvalProfileSplitsTheStep) {
+  CD_NEEDS_SUMO();
+  TempDir dir("cdtest-cli");
+  const std::string config = test::write_test_config(dir, "regular");
+  CommandResult r = test::run_cli({"bench", "eval", "--config", config, "--agent", "cs",
+                                   "--suite", "quickstart", "--episodes", "1", "--profile",
+                                   "--json"});
+  ASSERT_TRUE(r.exited && r.exit_code == 0) << r.describe();
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  for (const char* who : {"agent", "expert"}) {
+    const nlohmann::json& p = j["profile"][who];
+    double sum = 0;
+    for (const char* phase : {"sense_us", "act_us", "world_us", "score_us", "other_us"}) {
+      EXPECT_GE(p[phase].get<double>(), -1e-6) << who << " " << phase;
+      sum += p[phase].get<double>();
+    }
+    EXPECT_NEAR(sum, p["step_us"].get<double>(), 1e-6 * p["step_us"].get<double>()) << who;
+    EXPECT_GT(p["world_us"].get<double>(), 0) << who;
+  }
+  EXPECT_LT(j["profile"]["agent"]["act_us"].get<double>(),
+            j["profile"]["agent"]["world_us"].get<double>());
+}
+
 TEST(CliBench, WorldSlicesAreAnOption) {
   CD_NEEDS_SUMO();
   TempDir dir("cdtest-cli");
