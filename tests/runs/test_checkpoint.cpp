@@ -89,6 +89,16 @@ TEST(Checkpoint, SignedActionsRecordTheirSquashAndOlderRecordsAreRefused) {
   }
 }
 
+// A run recorded before model.pedals existed learned two pedals: it reads back as "two", not as
+// the later default "auto" (which would decode its two outputs as one signed value).
+TEST(Checkpoint, ARecordWithoutPedalsLearnedTwo) {
+  Checkpoint c = sample_checkpoint();
+  nlohmann::json j = checkpoint_to_json(c);
+  EXPECT_EQ(checkpoint_from_json(j, "x").model.pedals, "auto");  // as recorded
+  j["settings"]["model"].erase("pedals");
+  EXPECT_EQ(checkpoint_from_json(j, "x").model.pedals, "two");
+}
+
 TEST(Checkpoint, ReadingFolders) {
   TempDir dir("cd-learn");
   EXPECT_FALSE(read_checkpoint(dir.path()).has_value());
