@@ -380,6 +380,11 @@ class JsonReader {
 Settings settings_from_json(const nlohmann::json& j, const std::string& where) {
   if (!j.is_object()) throw DataError(where + ": the settings are not a JSON object");
   Settings st;
+  // Keys whose default changed after records were written without them (the validated recipe
+  // became the default on 2026-11-27): such a record was made with the value of its time.
+  st.collect.hold_s = 0;
+  st.model.pedals = "two";
+  st.train.situation_weights = "none";
   st.source = where;
   JsonReader reader(j, where);
   visit_settings(st, reader);

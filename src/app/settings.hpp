@@ -174,7 +174,9 @@ Settings override_settings(const Settings& base, const std::string& toml,
                            const std::string& where);
 nlohmann::json settings_to_json(const Settings& s);
 // The inverse of settings_to_json, for run records: same keys and ranges as a config; missing
-// keys keep their defaults; DataError naming `where` and the key otherwise.
+// keys keep their defaults, except the keys whose default changed since records lacked them
+// (collect.hold_s 0, model.pedals "two", train.situation_weights "none": the values of their
+// time); DataError naming `where` and the key otherwise.
 Settings settings_from_json(const nlohmann::json& j, const std::string& where);
 
 }  // namespace cd

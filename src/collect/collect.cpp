@@ -16,6 +16,7 @@
 #include "core/job.hpp"
 #include "data/h5_io.hpp"
 #include "data/h5_episode.hpp"
+#include "runs/record.hpp"
 #include "world/town.hpp"
 
 namespace fs = std::filesystem;
@@ -51,6 +52,28 @@ CollectReport collect(const Settings& settings, const CollectOptions& options) {
   spec.total = settings.collect.episodes;
   spec.complete = [&](int i) { return episode_complete(out + "/" + episode_file_name(i)); };
   spec.label = "collect";
+  // A finished folder (collect.json) collected with other settings is not added to: its
+  // episodes and the new ones would mix two datasets. The episode count, workers and folder
+  // may differ (a folder grows by a larger collect.episodes).
+  spec.claim = [&] {
+    const std::string manifest = out + "/collect.json";
+    if (!fs::exists(manifest)) return;
+    nlohmann::json stored;
+    try {
+      stored = nlohmann::json::parse(read_file_bytes(manifest)).at("settings");
+    } catch (const std::exception& e) {
+      throw DataError(manifest + " is damaged (" + e.what() + "): collect into another --out folder");
+    }
+    const nlohmann::json then = settings_to_json(settings_from_json(stored, manifest));
+    const std::string diff = settings_diff(
+        then, settings_to_json(settings), {"world", "ego", "expert", "bev", "collect"},
+        [](const std::string& table, const std::string& key) {
+          return table == "collect" && (key == "episodes" || key == "workers" || key == "out");
+        });
+    if (!diff.empty())
+      throw ConfigError(out + " holds episodes collected with other settings (" + diff +
+                        "): collect into another --out folder");
+  };
   spec.quiet = options.quiet;
   spec.workers = settings.collect.workers;
   spec.attempts = kMaxAttempts;

@@ -69,9 +69,6 @@ Checkpoint checkpoint_from_json(const json& j, const std::string& where) {
     c.model = s.model;
     c.residual = s.residual;
     c.fca = s.fca;
-    // Runs recorded before model.pedals existed learned two pedals (its default "auto" came later).
-    if (!c.settings.contains("model") || !c.settings.at("model").contains("pedals"))
-      c.model.pedals = "two";
   }
   JsonFields in{f.at("input"), where};
   c.input.channels = in.get<int>("channels");

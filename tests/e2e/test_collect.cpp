@@ -342,5 +342,26 @@ TEST(Collect, HoldKeepsTheEgoStillWithTheExpertsLabels) {
               test::read_text(again + "/" + episode_file_name(0)));
 }
 
+// A finished folder collected with other settings is not added to (its episodes and new ones
+// would mix two datasets); the same settings with more episodes grow it.
+TEST(Collect, AFolderOfOtherSettingsIsNotAddedTo) {
+  TempDir dir("cdtest-collect-other"), other("cdtest-collect-other-b");
+  const std::string a = test::write_test_config(dir, "empty", "max_episode_s = 8\nhold_s = 0.0\n");
+  const std::string b = test::write_test_config(other, "empty", "max_episode_s = 8\nhold_s = 1.0\n");
+  const std::string out = dir / "data";
+  ASSERT_EQ(collect_cli(a, out, 1, 1).exit_code, 0);
+  const std::string manifest = test::read_text(out + "/collect.json");
+  CommandResult r = collect_cli(b, out, 2, 1);
+  EXPECT_EQ(r.exit_code, 1) << r.describe();
+  ASSERT_EQ(test::split_lines(r.err).size(), 1u) << r.err;
+  EXPECT_NE(r.err.find("collect.hold_s"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("another --out folder"), std::string::npos) << r.err;
+  EXPECT_EQ(episode_files(out).size(), 1u);
+  EXPECT_EQ(test::read_text(out + "/collect.json"), manifest);
+  r = collect_cli(a, out, 2, 1);
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_EQ(episode_files(out).size(), 2u);
+}
+
 }  // namespace
 }  // namespace cd
