@@ -7,11 +7,21 @@
 #   scripts/verdicts.sh choose   # section 6's rule over the kept validation runs: the chosen
 #                                # variant per method -> configs/verdicts/METHOD.toml, and
 #                                # results/verdicts/tuning.md
+#   scripts/verdicts.sh data     # section 4: D1 and D2 (collect seeds 100, 200) for each
+#                                # method's chosen collect settings
+#   scripts/verdicts.sh train    # section 7: seeds 0-9 (residual, bc-oh, keyframe, dagger) and
+#                                # 0-4 (bc-so, hd, fca), seed s on D1 (even) or D2 (odd)
+#   scripts/verdicts.sh eval     # sections 2 and 5: every run on the six conditions
+#   scripts/verdicts.sh report   # the primary endpoint and residual against each method
+#                                # -> results/verdicts/primary.md
 #
 # Several steps run in order (`scripts/verdicts.sh tune choose`); an unknown step is refused
 # before any of them runs. Knobs:
 #   CD       the causaldrive binary   (default: build/causaldrive)
-#   METHODS  the methods tuned        (default: the seven of section 3)
+#   METHODS  the methods tuned, trained, evaluated (default: the seven of section 3)
+#   SEEDS_MAIN, SEEDS_OTHERS  section 7's seeds (default: "0 1 ... 9" for residual, bc-oh,
+#            keyframe, dagger; "0 1 2 3 4" for the others)
+#   WORKERS  evaluation workers       (default: 2)
 #   VAL, CONFIGS, RESULTS  choose's input and output folders (default: the kept validation
 #            runs, configs/verdicts, results/verdicts)
 set -euo pipefail
@@ -21,7 +31,11 @@ CD=${CD:-build/causaldrive}
 METHODS=${METHODS:-"residual bc-oh keyframe dagger bc-so hd fca"}
 VARIANTS="old signed hold-balanced signed-hold-balanced"
 OUT=${OUT:-runs/verdicts}
-source scripts/paper_lib.sh  # run_steps
+SEEDS_MAIN=${SEEDS_MAIN:-"0 1 2 3 4 5 6 7 8 9"}
+SEEDS_OTHERS=${SEEDS_OTHERS:-"0 1 2 3 4"}
+WORKERS=${WORKERS:-2}
+KEEP=${KEEP:-results/verdicts}
+source scripts/paper_lib.sh  # run_steps, kept_train, kept_eval
 VAL=${VAL:-results/residual_paper/recipe/eval}  # recipe_validation.sh's kept evaluations
 CONFIGS=${CONFIGS:-configs/verdicts}             # choose's configs
 RESULTS=${RESULTS:-results/verdicts}             # choose's tuning.md
@@ -98,11 +112,101 @@ EOF
   cat "$RESULTS/tuning.md"
 }
 
+seeds_of() {  # METHOD -> its training seeds (section 7)
+  case $1 in residual | bc-oh | keyframe | dagger) echo "$SEEDS_MAIN" ;; *) echo "$SEEDS_OTHERS" ;; esac
+}
+
+config_of() {  # METHOD -> its chosen config (section 6), or a one-line stop
+  local f=$CONFIGS/$1.toml
+  [[ -f $f ]] || { echo "error: $f missing: run 'scripts/verdicts.sh tune choose' first" >&2; return 1; }
+  echo "$f"
+}
+
+data_of() {  # METHOD SEED -> its data folder: D1 (even seed) or D2, for its collect settings
+  local config hold d
+  config=$(config_of "$1") || return
+  hold=$(python3 -c 'import sys, tomllib; print(tomllib.load(open(sys.argv[1], "rb")).get("collect", {}).get("hold_s", 1.0))' "$config")
+  d=D$(( $2 % 2 + 1 ))
+  echo "$OUT/data/hold$hold/$d"
+}
+
+data_step() {
+  local m s config dir seed
+  for m in $METHODS; do
+    config=$(config_of "$m") || return
+    for s in 0 1; do
+      dir=$(data_of "$m" "$s") || return
+      seed=$(( s == 0 ? 100 : 200 ))
+      [[ -f $dir/collect.json ]] || "$CD" collect --config "$config" --seed "$seed" --out "$dir"
+    done
+  done
+}
+
+train_step() {
+  local m s config
+  for m in $METHODS; do
+    config=$(config_of "$m") || return
+    for s in $(seeds_of "$m"); do
+      kept_train "$OUT/train/seed$s/$m" --config "$config" --method "$m" \
+        --data "$(data_of "$m" "$s")" --seed "$s" || return
+    done
+  done
+}
+
+# The six conditions of section 2: suite|sensor|folder name.
+CONDITIONS="verdicts-town-a-regular|clean|a-regular verdicts-town-a-dense|clean|a-dense
+verdicts-town-a-regular|shifted|a-regular-shifted verdicts-town-a-dense|shifted|a-dense-shifted
+verdicts-town-b-regular|clean|b-regular verdicts-town-b-dense|clean|b-dense"
+
+eval_dirs=()
+eval_step() {
+  local m s config c suite sensor name
+  eval_dirs=()
+  for m in $METHODS; do
+    config=$(config_of "$m") || return
+    for s in $(seeds_of "$m"); do
+      for c in $CONDITIONS; do
+        IFS='|' read -r suite sensor name <<<"$c"
+        restore_run "$OUT/train/seed$s/$m" || return
+        kept_eval "$OUT/eval/$m/seed$s/$name" --config "$config" --agent "$m" \
+          --checkpoint "$OUT/train/seed$s/$m" --label "$m" --suite "$suite" --trials 1 \
+          --workers "$WORKERS" --sensor "$sensor" --quiet
+        eval_dirs+=("$KEPT")
+      done
+    done
+  done
+}
+
+report_step() {
+  local dirs=() m f=$OUT/primary.md
+  mapfile -t dirs < <(find "$KEEP/eval" -name results.json -printf '%h\n' 2>/dev/null | sort)
+  [[ ${#dirs[@]} -gt 0 ]] || { echo "error: nothing evaluated yet in $KEEP/eval" >&2; return 1; }
+  mkdir -p "$OUT"
+  {
+    echo "# The verdicts' primary endpoint (docs/protocol.md section 2), from the kept evaluations"
+    echo
+    "$CD" report "${dirs[@]}" --metrics outcomes
+    for m in bc-oh keyframe dagger bc-so hd fca; do
+      echo
+      "$CD" report "${dirs[@]}" --metrics outcomes --compare residual "$m" \
+        | sed -n '/^## .* vs /,$p' || true
+    done
+    echo
+    "$CD" report "${dirs[@]}" --metrics outcomes --power | sed -n '/^## Power/,$p'
+  } > "$f.tmp"
+  mv "$f.tmp" "$f"
+  keep_file "$f"
+}
+
 run_step() {
   case $1 in
     tune) tune ;;
     choose) choose ;;
+    data) data_step ;;
+    train) train_step ;;
+    eval) eval_step ;;
+    report) report_step ;;
   esac
 }
 
-run_steps "tune choose" "$@"
+run_steps "tune choose data train eval report" "$@"
