@@ -39,6 +39,20 @@ def anchors(path):
 
 
 class Docs(unittest.TestCase):
+    def test_the_verdicts_page_is_what_the_kept_results_give(self):
+        # scripts/verdicts_doc.py regenerates docs/verdicts.md from `report` over the kept
+        # results; --check fails on any difference, so no number of the page is typed by hand.
+        script = os.path.join(ROOT, "scripts", "verdicts_doc.py")
+        env = dict(os.environ, CD=os.path.abspath(BIN), ROOT=ROOT)
+        r = subprocess.run([script, "--check"], env=env, capture_output=True, text=True,
+                           timeout=600)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(ROOT, "docs", "verdicts.md"), encoding="utf-8") as f:
+            text = f.read()
+        self.assertIn("+10.7 [+0.6, +20.8] points", text)  # cim - dim: seed000.md's figure
+        self.assertIn("| refuted |", text)
+
+
     def test_the_readme_fits_in_250_lines(self):
         with open(os.path.join(ROOT, "README.md"), encoding="utf-8") as f:
             self.assertLessEqual(len(f.read().splitlines()), 250)

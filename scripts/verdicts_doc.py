@@ -1,0 +1,132 @@
+#!/usr/bin/env python3
+"""docs/verdicts.md from the kept results (issue 47, docs/protocol.md section 8): one row per
+claim of both papers, each number produced by `causaldrive report --json` over kept
+evaluations, none typed by hand. A claim whose runs are not kept yet says so.
+
+  scripts/verdicts_doc.py            # writes docs/verdicts.md
+  scripts/verdicts_doc.py --check    # exit 1 when docs/verdicts.md differs from what the kept
+                                     # results give (the test that keeps the page true)
+
+CD (the binary, default build/causaldrive) and ROOT (the checkout, default this script's) are
+read from the environment.
+"""
+import glob
+import json
+import os
+import subprocess
+import sys
+
+ROOT = os.environ.get("ROOT", os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+CD = os.environ.get("CD", os.path.join(ROOT, "build", "causaldrive"))
+PAGE = os.path.join(ROOT, "docs", "verdicts.md")
+
+
+def report(dirs, *args):
+    """`causaldrive report DIRS --json ARGS` as a dict (dirs relative to ROOT)."""
+    r = subprocess.run([CD, "report", *dirs, "--json", *args], cwd=ROOT, capture_output=True,
+                       text=True, timeout=600)
+    if r.returncode != 0:
+        raise SystemExit("verdicts_doc.py: report failed: " + r.stderr.strip())
+    return json.loads(r.stdout)
+
+
+def pts(x):
+    return "%+.1f" % (100 * x)
+
+
+def compare_row(claim, paper, dirs, a, b, metric, a_better_is_claim, command):
+    """A claim "A is better than B" (or, with a_better_is_claim False, "B better than A")
+    judged by report --compare over the conditions both have."""
+    c = report(dirs, "--metrics", "outcomes", "--compare", a, b, "--compare-metric", metric)
+    over = c["compare"].get("over_conditions") or c["compare"]["conditions"][0]
+    n = len(c["compare"]["conditions"])
+    verdict = over["verdict"]
+    wanted = "A better" if a_better_is_claim else "B better"
+    if verdict == "not resolved":
+        word = "not resolved at this power (half-width %.1f points)" % (
+            50 * (over["hi"] - over["lo"]))
+    else:
+        word = "confirmed" if verdict == wanted else "refuted"
+    ours = "%s - %s, %s over %d condition%s: %s [%s, %s] points, P(A > B) %.2f" % (
+        a, b, metric, n, "" if n == 1 else "s", pts(over["difference"]), pts(over["lo"]),
+        pts(over["hi"]), over["p_improvement"])
+    return [claim, paper, ours, word, "`%s`" % command]
+
+
+def dirs_of(*patterns):
+    out = []
+    for p in patterns:
+        out += sorted(glob.glob(os.path.join(ROOT, p)))
+    return [os.path.relpath(d, ROOT) for d in out]
+
+
+def rows():
+    E = "results/cim_paper/eval"
+    cim_cmd = "scripts/cim_paper.sh intervals"
+    out = [
+        compare_row("Seed 000 table 1: CIM's error is below DIM's", "20 / 38 % against DIM's 65-83 %",
+                    dirs_of(E + "/dim", E + "/cim"), "cim", "dim", "error_rate", True, cim_cmd),
+        compare_row("Seed 000 table 1: CIM's error is below RIP's", "20 / 38 % against RIP's 65-83 %",
+                    dirs_of(E + "/rip", E + "/cim"), "cim", "rip", "error_rate", True, cim_cmd),
+        compare_row("Seed 000 table 2: CIM is better than CIM-MLP", "20 / 38 % against 22 / 42 %",
+                    dirs_of(E + "/cim", E + "/cim-mlp"), "cim", "cim-mlp", "error_rate", True,
+                    cim_cmd),
+        compare_row("Seed 000 table 2: CIM-entangled gets stuck (more error than CIM)",
+                    "81 / 78 % error, inertia 77 / 68 %",
+                    dirs_of(E + "/cim", E + "/cim-entangled"), "cim", "cim-entangled",
+                    "error_rate", True, cim_cmd),
+        compare_row("Seed 000 table 3: few-shot CIM beats few-shot CIM-MLP (town-c)",
+                    "29 against 38 %", dirs_of(E + "/cim-fewshot", E + "/cim-mlp-fewshot"),
+                    "cim-fewshot", "cim-mlp-fewshot", "error_rate", True, cim_cmd),
+        compare_row("Families: seed 001's residual beside seed 000's cim (route mode, 4 conditions)",
+                    "(no paper figure)",
+                    dirs_of("results/residual_paper/eval/residual/seed*/town-?-regular",
+                            "results/residual_paper/eval/residual/seed*/town-?-dense",
+                            "results/residual_paper/eval/cim/seed*/town-?-regular",
+                            "results/residual_paper/eval/cim/seed*/town-?-dense"),
+                    "residual", "cim", "success_rate", True, "scripts/residual_paper.sh families"),
+    ]
+    pending = "pending: the protocol's runs (docs/protocol.md) are not evaluated yet"
+    for claim in ["Seed 001 tables 7-9: residual beats bc-oh (primary endpoint)",
+                  "Seed 001 tables 7-9: residual beats keyframe, dagger, bc-so, hd, fca",
+                  "Seed 001 table 10: green-light rate 31-66 %",
+                  "Seed 001 table 11: two streams help", "Seed 001 table 13: MuJoCo-Image",
+                  "Seed 001 B.5: more memory branches help",
+                  "Seed 001: residual relies less on the past (probe)"]:
+        out.append([claim, "", pending, "not yet", "`scripts/verdicts.sh report`"])
+    return out
+
+
+def page():
+    lines = ["# Verdicts", "",
+             "[Back to the README](../README.md) · [all pages](README.md)", "",
+             "One row per claim of both papers (docs/protocol.md): the claim, the paper's figure, "
+             "ours with its 95% interval, the verdict (section 8 of the protocol), and the "
+             "command that made the row. Generated by `scripts/verdicts_doc.py` from the kept "
+             "results: no number is typed by hand, and a test fails when this page differs from "
+             "them. Seed 000's rows come from its kept paper-scale runs (100 tasks x 3 trials x "
+             "3 seeds; error = collision + inertia, the paper's own error needs per-episode "
+             "inertia its records predate). Seed 001's rows wait for the protocol's runs.", "",
+             "| claim | paper | ours | verdict | command |", "|---|---|---|---|---|"]
+    for r in rows():
+        lines.append("| " + " | ".join(r) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def main():
+    text = page()
+    if "--check" in sys.argv[1:]:
+        with open(PAGE, encoding="utf-8") as f:
+            if f.read() != text:
+                print("docs/verdicts.md differs from the kept results: run scripts/verdicts_doc.py",
+                      file=sys.stderr)
+                return 1
+        return 0
+    with open(PAGE + ".tmp", "w", encoding="utf-8") as f:
+        f.write(text)
+    os.replace(PAGE + ".tmp", PAGE)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
