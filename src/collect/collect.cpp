@@ -64,7 +64,13 @@ CollectReport collect(const Settings& settings, const CollectOptions& options) {
     } catch (const std::exception& e) {
       throw DataError(manifest + " is damaged (" + e.what() + "): collect into another --out folder");
     }
-    const nlohmann::json then = settings_to_json(settings_from_json(stored, manifest));
+    // Keys the record lacks read as of their time (settings_from_json); a record it cannot read
+    // back (DAgger's rollout folders hold derived seeds beyond a config's range) as it is.
+    nlohmann::json then = stored;
+    try {
+      then = settings_to_json(settings_from_json(stored, manifest));
+    } catch (const DataError&) {
+    }
     const std::string diff = settings_diff(
         then, settings_to_json(settings), {"world", "ego", "expert", "bev", "collect"},
         [](const std::string& table, const std::string& key) {
