@@ -98,10 +98,12 @@ std::map<std::string, std::string> parse_lock(const std::string& content) {
   return kv;
 }
 
+// Writes the file's new content over the old, then cuts it to length: a reader never sees it
+// empty (a heartbeat's rewrite read as "no holder" would let a job without flock take a live
+// lock), at worst the new head over the old tail for a moment when the text shrinks.
 bool write_fd(int fd, const std::string& text) {
-  return ::ftruncate(fd, 0) == 0 &&
-         ::pwrite(fd, text.data(), text.size(), 0) == static_cast<ssize_t>(text.size()) &&
-         ::fdatasync(fd) == 0;
+  return ::pwrite(fd, text.data(), text.size(), 0) == static_cast<ssize_t>(text.size()) &&
+         ::ftruncate(fd, static_cast<off_t>(text.size())) == 0 && ::fdatasync(fd) == 0;
 }
 
 // flock(2) errors that mean "no flock on this file system" (Lustre without -o flock: ENOSYS;

@@ -235,11 +235,16 @@ TEST(RunLockCli, ConcurrentTrainIntoOneFolderIsRefusedNamingTheFirst) {
   test::TinyRun tiny({.method = "bc-oh", .extra = "\n[train]\nepochs = 2\n"});
   const std::string data = tiny.data(), out = tiny.dir() / "run";
   // The first train is frozen (SIGSTOP) once it holds the folder, so the second meets it.
+  // "Holds": its lock file names it (the file exists a moment before its holder line does).
   const pid_t first = test::spawn_group(
       {CD_BINARY, "train", "--config", tiny.config(), "--method", "bc-oh", "--data", data,
        "--out", out}, tiny.dir() / "first.out", tiny.dir() / "first.err");
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-  while (!fs::exists(out + "/" + kRunLockName) && std::chrono::steady_clock::now() < deadline)
+  auto holds = [&] {
+    return fs::exists(out + "/" + kRunLockName) &&
+           test::read_text(out + "/" + kRunLockName).find("state held") != std::string::npos;
+  };
+  while (!holds() && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   ::kill(-first, SIGSTOP);
   ASSERT_TRUE(fs::exists(out + "/" + kRunLockName)) << test::read_text(tiny.dir() / "first.err");
