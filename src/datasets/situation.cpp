@@ -22,11 +22,14 @@ const std::vector<std::string>& situation_causes() {
   return names;
 }
 
-bool records_situation_causes(const std::string& data_dir) {
-  const EpisodeData first = read_episode(list_episode_files(data_dir).front());
+bool has_situation_causes(const std::map<std::string, std::vector<float>>& causes) {
   for (const std::string& name : situation_causes())
-    if (!first.causes.count(name)) return false;
+    if (!causes.count(name)) return false;
   return true;
+}
+
+bool records_situation_causes(const std::string& data_dir) {
+  return has_situation_causes(read_episode(list_episode_files(data_dir).front()).causes);
 }
 
 namespace {

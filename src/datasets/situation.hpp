@@ -15,6 +15,7 @@
 // "A red light ahead within stopping distance": tl_state red or yellow and tl_distance <=
 // speed^2 / (2 * 3 m/s^2, the expert's comfort deceleration) + 10 m.
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -49,6 +50,7 @@ const std::vector<std::string>& situation_names();  // indexed by Situation
 // lead_distance), and whether the first episode of a driving data folder records them all
 // (collect does; reads that one file).
 const std::vector<std::string>& situation_causes();
+bool has_situation_causes(const std::map<std::string, std::vector<float>>& causes);
 bool records_situation_causes(const std::string& data_dir);
 
 // The situations of step t of a driving episode, as a bit mask (bit s = Situation s; kAllFrames

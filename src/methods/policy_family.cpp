@@ -145,9 +145,7 @@ Settings resolve_recipe_for(const Settings& s, const std::string& dir) {
 
 std::vector<float> situation_weights(const Settings& settings, const Dataset& data) {
   const EpisodeSet& eps = data.episodes();
-  bool causes = !eps.episodes.empty();
-  for (const std::string& name : situation_causes())
-    causes = causes && eps.episodes.front().causes.count(name) > 0;
+  const bool causes = !eps.episodes.empty() && has_situation_causes(eps.episodes.front().causes);
   const Settings s = resolve_recipe(settings, eps.domain, causes);
   if (s.train.situation_weights == "none") return {};
   if (eps.domain != kDrivingDomain)

@@ -568,16 +568,21 @@ TEST(ReportIntervals, RatesGetTheirIntervalComparisonsAndPower) {
     }
   // The oracle: the library's interval of the same seeds x tasks (its coverage is tested in
   // test_intervals.cpp), per-task shares by hand.
-  auto seeds_of = [](const std::vector<std::vector<std::vector<std::string>>>& all) {
+  // Per seed and task, the share of its two trials that ended in `outcome`.
+  auto shares_of = [](const std::vector<std::vector<std::vector<std::string>>>& all,
+                      const std::string& outcome) {
     SeedRuns runs;
     for (const auto& seed : all) {
       SeedOutcomes o;
       o.trials = 2;
       for (const auto& task : seed)
-        o.per_task.push_back((task[0] == "success") * 0.5 + (task[1] == "success") * 0.5);
+        o.per_task.push_back((task[0] == outcome) * 0.5 + (task[1] == outcome) * 0.5);
       runs.push_back(o);
     }
     return runs;
+  };
+  auto seeds_of = [&](const std::vector<std::vector<std::vector<std::string>>>& all) {
+    return shares_of(all, "success");
   };
   const Interval ia = rate_interval(seeds_of(a_seeds));
   auto fmt1 = [](double v) {
@@ -624,16 +629,8 @@ TEST(ReportIntervals, RatesGetTheirIntervalComparisonsAndPower) {
   EXPECT_TRUE(interval) << c.out;
 
   // A failure rate: the lower one is better, so the library's "A higher" is "B better".
-  auto collisions_of = [](const std::vector<std::vector<std::vector<std::string>>>& all) {
-    SeedRuns runs;
-    for (const auto& seed : all) {
-      SeedOutcomes o;
-      o.trials = 2;
-      for (const auto& task : seed)
-        o.per_task.push_back((task[0] == "collision") * 0.5 + (task[1] == "collision") * 0.5);
-      runs.push_back(o);
-    }
-    return runs;
+  auto collisions_of = [&](const std::vector<std::vector<std::vector<std::string>>>& all) {
+    return shares_of(all, "collision");
   };
   CommandResult cc = test::run_cli({"report", dir / "runs", "--metrics", "outcomes", "--compare",
                                     "A", "B", "--compare-metric", "collision_rate", "--json"});
