@@ -14,10 +14,17 @@ cd "$root"
 data="${1:-}"
 episodes="${2:-8}"
 mkdir -p .gpu/debs
-# Header libraries and GoogleTest (the rest, HDF5, Eigen, Boost, CLI11 and nlohmann-json, the
-# machine has; SUMO and MuJoCo are left out of that build).
-(cd .gpu/debs && apt-get download libtomlplusplus-dev libtomlplusplus3 libstb-dev libgtest-dev \
-  >/dev/null 2>&1)
+# What the build needs beyond a compiler, CMake and PyTorch: HDF5 (with the libraries it links:
+# szip, curl and curl's own), TOML++, CLI11, nlohmann-json, Eigen, stb and GoogleTest. SUMO and
+# MuJoCo are left out of that build. gpu_check.py keeps of the runtime libraries only those the
+# machine lacks.
+(cd .gpu/debs && apt-get download libhdf5-dev libhdf5-103-1 libhdf5-cpp-103-1 libhdf5-hl-100 \
+  libhdf5-hl-cpp-100 libaec-dev libaec0 libsz2 libcurl4 libbrotli1 libffi8 libgmp10 libgnutls30 \
+  libgssapi-krb5-2 libhogweed6 libidn2-0 libk5crypto3 libkrb5-3 libkrb5support0 libldap-2.5-0 \
+  libnettle8 libnghttp2-14 libp11-kit0 libpsl5 librtmp1 libsasl2-2 libssh2-1 libssl3 \
+  libtasn1-6 libunistring2 libzstd1 libcom-err2 libkeyutils1 zlib1g \
+  libtomlplusplus-dev libtomlplusplus3 libcli11-dev nlohmann-json3-dev libeigen3-dev \
+  libstb-dev libstb0 libgtest-dev >/dev/null)
 if [[ -n "$data" ]]; then
   rm -rf .gpu/data
   mkdir -p .gpu/data

@@ -6,6 +6,7 @@ import json
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -19,7 +20,16 @@ PREFIX = os.path.join(ROOT, ".gpu/prefix")
 OUT = os.environ.get("OUT") or tempfile.mkdtemp(prefix="gpu_check.")
 # DEVICE=cpu rehearses every step on a machine without a GPU (what was run where).
 DEVICE = os.environ.get("DEVICE", "cuda")
-report = {"steps": {}, "errors": []}
+# DEADLINE_S: seconds from the start after which the remaining steps are skipped (each is named in
+# "skipped"), so that a lease's time limit still gets the JSON; 0 for none.
+DEADLINE = float(os.environ.get("DEADLINE_S", "0"))
+START = time.time()
+report = {"steps": {}, "errors": [], "skipped": []}
+
+
+def left():
+    """Seconds left before DEADLINE_S (None without one)."""
+    return DEADLINE - (time.time() - START) if DEADLINE > 0 else None
 
 
 def log_path(name):
@@ -27,21 +37,34 @@ def log_path(name):
 
 
 def run(name, cmd, env=None, timeout=None, check=True):
-    """Runs cmd with its output in OUT/name.log; returns (returncode, output)."""
+    """Runs cmd with its output in OUT/name.log; returns (returncode, output). A step that would
+    start past DEADLINE_S is skipped (returncode None); one that runs into it is stopped (124)."""
+    remaining = left()
+    if remaining is not None:
+        if remaining < 5:
+            report["skipped"].append(name)
+            return None, ""
+        timeout = min(timeout, remaining) if timeout else remaining
     t = time.time()
     with open(log_path(name), "w") as f:
         f.write("$ " + " ".join(cmd) + "\n")
         f.flush()
+        # Its own process group, so that a step stopped at its limit takes its children along
+        # (ctest's tests would otherwise keep the output pipe open).
+        p = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                             stderr=subprocess.STDOUT, text=True, start_new_session=True)
         try:
-            p = subprocess.run(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE,
-                               stderr=subprocess.STDOUT, text=True, timeout=timeout)
-            rc, out = p.returncode, p.stdout
-        except subprocess.TimeoutExpired as e:
-            rc, out = 124, (e.stdout or b"").decode() if isinstance(e.stdout, bytes) else (e.stdout or "")
+            out, _ = p.communicate(timeout=timeout)
+            rc = p.returncode
+        except subprocess.TimeoutExpired:
+            os.killpg(p.pid, signal.SIGKILL)
+            out, _ = p.communicate()
+            rc = 124
+            report["errors"].append(f"{name}: stopped after {timeout:.0f} s")
         f.write(out)
     report["steps"].setdefault(name, 0.0)
     report["steps"][name] = round(report["steps"][name] + time.time() - t, 2)
-    if check and rc != 0:
+    if check and rc not in (0, None):
         tail = "\n".join(out.strip().splitlines()[-5:])
         report["errors"].append(f"{name}: exit {rc}: {tail}")
     return rc, out
@@ -69,20 +92,51 @@ def finish(code=0):
 
 
 def environment():
-    import torch  # the machine's PyTorch: its libtorch is what causaldrive builds against
+    """The machine's PyTorch, whose libtorch causaldrive builds against; a CPU rehearsal on a
+    machine without PyTorch builds against the default libtorch (Debian's) and has no peer."""
+    report["cores"] = os.cpu_count()
+    report["device"] = DEVICE
+    for key, cmd in (("compiler", ["c++", "--version"]), ("cmake", ["cmake", "--version"]),
+                     ("os", ["sh", "-c", ". /etc/os-release && echo $PRETTY_NAME"]),
+                     ("nvidia_smi", ["nvidia-smi", "--query-gpu=name,driver_version,memory.total",
+                                     "--format=csv,noheader"])):
+        try:
+            out = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                 timeout=30).stdout
+            report[key] = out.strip().splitlines()[0] if out.strip() else None
+        except (OSError, subprocess.TimeoutExpired):
+            report[key] = None
+    try:
+        import torch
+    except ImportError:
+        if DEVICE == "cuda":
+            raise
+        report["torch"] = None
+        report["torch_prefix"] = None
+        return None
     report["torch"] = torch.__version__
     report["cuda"] = torch.version.cuda
     report["gpu"] = torch.cuda.get_device_name(0) if torch.cuda.is_available() else None
-    report["cores"] = os.cpu_count()
     report["torch_prefix"] = torch.utils.cmake_prefix_path
-    report["device"] = DEVICE
     if DEVICE == "cuda" and not torch.cuda.is_available():
         report["errors"].append("PyTorch sees no GPU here")
     return torch.utils.cmake_prefix_path
 
 
+def system_sonames():
+    """The shared libraries the machine's loader already finds (ldconfig's cache)."""
+    try:
+        out = subprocess.run(["ldconfig", "-p"], stdout=subprocess.PIPE, text=True).stdout
+    except OSError:
+        return set()
+    return {line.split()[0] for line in out.splitlines()[1:] if line.strip()}
+
+
 def unpack_debs(env):
-    """Carried Debian packages into a private prefix (never into /)."""
+    """Carried Debian packages into a private prefix (never into /). The linker sees all of them;
+    the programs run with only those runtime libraries the machine lacks (LD_LIBRARY_PATH would
+    put a carried one before the machine's own for every program, PyTorch too), HDF5's own
+    always, since HDF5 stops a program whose headers and library differ."""
     debs = sorted(glob.glob(os.path.join(DEBS, "*.deb")))
     if not debs:
         return env
@@ -90,13 +144,26 @@ def unpack_debs(env):
     os.makedirs(PREFIX, exist_ok=True)
     for d in debs:
         subprocess.run(["dpkg", "-x", d, PREFIX], check=True)
+    libs = [os.path.join(PREFIX, sub, "lib", "x86_64-linux-gnu") for sub in ("usr", "")]
+    runtime = os.path.join(PREFIX, "runtime")
+    shutil.rmtree(runtime, ignore_errors=True)
+    os.makedirs(runtime)
+    have, used, skipped = system_sonames(), [], []
+    for lib in libs:
+        for path in sorted(glob.glob(os.path.join(lib, "lib*.so.*"))):
+            name = os.path.basename(path)
+            if name.startswith("libhdf5") or name not in have:
+                os.symlink(os.path.realpath(path), os.path.join(runtime, name))
+                used.append(name)
+            else:
+                skipped.append(name)
     usr = os.path.join(PREFIX, "usr")
     env["CPATH"] = os.path.join(usr, "include") + os.pathsep + env.get("CPATH", "")
-    lib = os.path.join(usr, "lib", "x86_64-linux-gnu")
-    env["LIBRARY_PATH"] = lib + os.pathsep + env.get("LIBRARY_PATH", "")
-    env["LD_LIBRARY_PATH"] = lib + os.pathsep + env.get("LD_LIBRARY_PATH", "")
+    env["LIBRARY_PATH"] = os.pathsep.join(libs + [env.get("LIBRARY_PATH", "")])
+    env["LD_LIBRARY_PATH"] = os.pathsep.join([runtime, env.get("LD_LIBRARY_PATH", "")])
     report["steps"]["unpack"] = round(time.time() - t, 2)
     report["carried_debs"] = [os.path.basename(d) for d in debs]
+    report["carried_libraries"] = {"used": used, "the_machine_has": skipped}
     return env
 
 
@@ -110,7 +177,7 @@ def main():
     if sumo == "auto":
         sumo = "ON" if os.path.isdir("/usr/share/sumo/cmake") else "OFF"
     report["build_parts"] = {"sumo": sumo, "mujoco": "OFF", "python_module": "OFF"}
-    prefixes = [torch_prefix] + ([os.path.join(PREFIX, "usr")] if os.path.isdir(PREFIX) else [])
+    prefixes = [p for p in [torch_prefix] if p] + ([os.path.join(PREFIX, "usr")] if os.path.isdir(PREFIX) else [])
     gen = ["-G", "Ninja"] if shutil.which("ninja") else []
     rc, _ = run("configure", ["cmake", "-S", ROOT, "-B", BUILD, *gen, "-DCMAKE_BUILD_TYPE=Release",
                               f"-DCD_WITH_SUMO={sumo}", "-DCD_WITH_MUJOCO=OFF",
@@ -119,24 +186,13 @@ def main():
     if rc != 0:
         finish(1)
     rc, _ = run("build", ["cmake", "--build", BUILD, "-j", str(JOBS), "--target", "causaldrive",
-                          "causaldrive_unit_tests", "causaldrive_e2e_tests"], env=env)
+                          "causaldrive_unit_tests", "causaldrive_e2e_tests",
+                          "causaldrive_no_mpi_tests"], env=env)
     if rc != 0:
         finish(1)
     cd = os.path.join(BUILD, "causaldrive")
     _, version = run("version", [cd, "--version"], env=env)
     report["version"] = version.strip()
-
-    # Unit tests: train.device's default, auto, resolves to CUDA here.
-    rc, out = run("unit_tests", ["ctest", "--test-dir", BUILD, "-L", "unit", "-j", str(min(JOBS, 8)),
-                                 "--output-on-failure", "--timeout", "300"], env=env, check=False)
-    m = re.search(r"(\d+)% tests passed, (\d+) tests failed out of (\d+)", out)
-    report["unit_tests"] = {
-        "passed": int(m.group(3)) - int(m.group(2)) if m else None,
-        "failed": int(m.group(2)) if m else None, "total": int(m.group(3)) if m else None,
-        "failures": re.findall(r"\d+ - (\S+) \((?:Failed|Timeout|SEGFAULT|Exception)", out)}
-    # The device tests of the e2e binary (the one-line errors skip where CUDA is usable).
-    run("device_cli", ["ctest", "--test-dir", BUILD, "-R", "CliDevice", "--output-on-failure"],
-        env=env, check=False)
 
     # The training step alone: C++ (bench train) and the PyTorch-Python peer, same network,
     # batch and precision, inputs on the device.
@@ -156,12 +212,17 @@ def main():
                           [cd, "bench", "train", "--device", DEVICE, "--json", *common], env=env)
             cpp = json.loads(out.strip().splitlines()[-1]) if rc == 0 else None
             rc, out = run(f"peer_{backbone}_{batch}_{precision}",
-                          [sys.executable, "scripts/gpu_peer.py", "--device", DEVICE, *common], env=env)
+                          [sys.executable, "scripts/gpu_peer.py", "--device", DEVICE, *common,
+                           *(["--profile"] if batch == 512 else [])], env=env)
             peer = json.loads(out.strip().splitlines()[-1]) if rc == 0 else None
+            if cpp:
+                case["cpp_samples_per_s"] = round(cpp["samples_per_s"], 1)
+                case["cpp_phases"] = cpp.get("phases")
+            if peer:
+                case["peer_samples_per_s"] = round(peer["samples_per_s"], 1)
+                case["peer_phases"] = peer.get("phases")
             if cpp and peer:
-                case.update(cpp_samples_per_s=round(cpp["samples_per_s"], 1),
-                            peer_samples_per_s=round(peer["samples_per_s"], 1),
-                            ratio=round(cpp["samples_per_s"] / peer["samples_per_s"], 3),
+                case.update(ratio=round(cpp["samples_per_s"] / peer["samples_per_s"], 3),
                             same_parameters=cpp["parameters"] == peer["parameters"])
             bench.append(case)
         # The same step on this machine's CPU cores (batch 128, fp32).
@@ -212,6 +273,19 @@ def main():
                 train[f"{backbone}_agreement"] = agreement(backbone, cpu_n, cpu["train_loss"],
                                                            same["train_loss"])
         report["train"] = train
+    # Last, since a lease may end first: the unit tests (train.device's default, auto, resolves
+    # to CUDA here).
+    rc, out = run("unit_tests", ["ctest", "--test-dir", BUILD, "-L", "unit", "-j", str(min(JOBS, 8)),
+                                 "--output-on-failure", "--timeout", "300"], env=env, check=False)
+    m = re.search(r"(\d+)% tests passed, (\d+) tests failed out of (\d+)", out)
+    report["unit_tests"] = {
+        "passed": int(m.group(3)) - int(m.group(2)) if m else None,
+        "failed": int(m.group(2)) if m else None, "total": int(m.group(3)) if m else None,
+        "failures": re.findall(r"\d+ - (\S+) \((?:Failed|Timeout|SEGFAULT|Exception)", out)}
+    # The device tests of the e2e binary (the one-line errors skip where CUDA is usable).
+    run("device_cli", ["ctest", "--test-dir", BUILD, "-R", "CliDevice", "--output-on-failure"],
+        env=env, check=False)
+
     finish(0 if not report["errors"] else 1)
 
 

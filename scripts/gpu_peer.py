@@ -10,6 +10,7 @@ the C++ network's (scripts/gpu_check.sh compares them).
 """
 import argparse
 import json
+import sys
 import time
 
 import torch
@@ -94,6 +95,29 @@ class Policy(nn.Module):  # PolicyNet, head "cilrs", throttle_brake, signed peda
         return torch.tanh(stacked.gather(1, index).squeeze(1)), self.speed_head(f)
 
 
+def profile(dev, step, sync, steps):
+    """PyTorch's profiler over a few plain steps: its table, by the device's own time, on stderr
+    (a profiler that fails says so there and leaves the benchmark's figures alone)."""
+    try:
+        acts = [torch.profiler.ProfilerActivity.CPU] + (
+            [torch.profiler.ProfilerActivity.CUDA] if dev.type == "cuda" else [])
+        with torch.profiler.profile(activities=acts) as prof:
+            for _ in range(steps):
+                step()
+            sync()
+        table = None
+        for key in (("self_device_time_total", "self_cuda_time_total") if dev.type == "cuda"
+                    else ("self_cpu_time_total",)):
+            try:
+                table = prof.key_averages().table(sort_by=key, row_limit=25)
+                break
+            except Exception:  # the key's name differs between PyTorch versions
+                continue
+        print(table, file=sys.stderr, flush=True)
+    except Exception as e:
+        print(f"profiler failed: {e}", file=sys.stderr, flush=True)
+
+
 def bench(a):
     if a.threads > 0:
         torch.set_num_threads(a.threads)
@@ -111,11 +135,14 @@ def bench(a):
     command = torch.randint(0, 4, (B,), device=dev)
     target, speed_label = torch.rand(B, 1, device=dev), torch.rand(B, 1, device=dev) * 10
 
-    def step():
+    def forward_loss():
         with torch.autocast(device_type=dev.type, dtype=torch.bfloat16,
                             enabled=a.precision == "bf16"):
             action, s = net(image, speed, command)
-            loss = (action.float() - target).abs().mean() + 0.05 * (s.float() - speed_label).abs().mean()
+            return (action.float() - target).abs().mean() + 0.05 * (s.float() - speed_label).abs().mean()
+
+    def step():
+        loss = forward_loss()
         opt.zero_grad()
         loss.backward()
         opt.step()
@@ -130,8 +157,30 @@ def bench(a):
         step()
     sync()
     dt = time.perf_counter() - t
-    return {"peer": "pytorch-python", "torch": torch.__version__, "backbone": a.backbone,
-            "device": dev.type, "precision": a.precision, "batch": B, "steps": a.steps,
+
+    # Where a step's time goes, as bench train measures it: up to 10 more steps with the device
+    # synchronised between the phases.
+    def clock():
+        sync()
+        return time.perf_counter()
+
+    phase_steps, fwd, bwd, optim = min(a.steps, 10), 0.0, 0.0, 0.0
+    for _ in range(phase_steps):
+        t0 = clock()
+        loss = forward_loss()
+        t1 = clock()
+        opt.zero_grad()
+        loss.backward()
+        t2 = clock()
+        opt.step()
+        t3 = clock()
+        fwd, bwd, optim = fwd + t1 - t0, bwd + t2 - t1, optim + t3 - t2
+    phases = {"steps": phase_steps, "forward_ms": 1e3 * fwd / phase_steps,
+              "backward_ms": 1e3 * bwd / phase_steps, "optimizer_ms": 1e3 * optim / phase_steps}
+    if a.profile:
+        profile(dev, step, sync, min(a.steps, 5))
+    return {"phases": phases, "peer": "pytorch-python", "torch": torch.__version__,
+            "backbone": a.backbone, "device": dev.type, "precision": a.precision, "batch": B, "steps": a.steps,
             "channels_last": a.channels_last, "threads": torch.get_num_threads(),
             "parameters": sum(p.numel() for p in net.parameters()),
             "samples_per_s": B * a.steps / dt if dt > 0 else 0.0}
@@ -149,6 +198,8 @@ def main():
     p.add_argument("--channels", type=int, default=32)
     p.add_argument("--size", type=int, default=64)
     p.add_argument("--channels-last", action="store_true")
+    p.add_argument("--profile", action="store_true",
+                   help="print PyTorch's profiler table of a few steps on stderr")
     print(json.dumps(bench(p.parse_args())), flush=True)
 
 

@@ -1,5 +1,6 @@
 #include "bench/train_bench.hpp"
 
+#include <algorithm>
 #include <chrono>
 
 #include <torch/cuda.h>
@@ -43,13 +44,13 @@ nlohmann::json bench_train_step(const TrainBenchOptions& o) {
   const torch::Tensor speed_label = torch::rand({B, 1}, on) * 10;
 
   double first_loss = 0;
+  auto forward_loss = [&] {
+    AutocastScope autocast(dev);
+    PolicyOutput out = nets.policy->forward(image, speed, command, true);
+    return policy_loss(s, out, target, speed_label);
+  };
   auto step = [&] {
-    torch::Tensor loss;
-    {
-      AutocastScope autocast(dev);
-      PolicyOutput out = nets.policy->forward(image, speed, command, true);
-      loss = policy_loss(s, out, target, speed_label);
-    }
+    const torch::Tensor loss = forward_loss();
     opt.zero_grad();
     loss.backward();
     opt.step();
@@ -69,6 +70,35 @@ nlohmann::json bench_train_step(const TrainBenchOptions& o) {
   sync();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (o.warmup == 0) first_loss = last.item<double>();
+
+  // Where a step's time goes, from a few more steps with the device synchronised between the
+  // phases (so these steps are slower than the timed ones; the peer measures its own the same way).
+  const int phase_steps = std::min(o.steps, 10);
+  double forward = 0, backward = 0, optimizer = 0;
+  auto clock = [&] {
+    sync();
+    return std::chrono::steady_clock::now();
+  };
+  auto since = [](std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
+    return std::chrono::duration<double, std::milli>(b - a).count();
+  };
+  for (int i = 0; i < phase_steps; ++i) {
+    const auto a = clock();
+    const torch::Tensor loss = forward_loss();
+    const auto b = clock();
+    opt.zero_grad();
+    loss.backward();
+    const auto c = clock();
+    opt.step();
+    const auto d = clock();
+    forward += since(a, b);
+    backward += since(b, c);
+    optimizer += since(c, d);
+  }
+  const nlohmann::json phases = {{"steps", phase_steps},
+                                 {"forward_ms", forward / phase_steps},
+                                 {"backward_ms", backward / phase_steps},
+                                 {"optimizer_ms", optimizer / phase_steps}};
   return {{"method", o.method},
           {"backbone", o.backbone},
           {"device", dev.name},
@@ -79,7 +109,8 @@ nlohmann::json bench_train_step(const TrainBenchOptions& o) {
           {"samples_per_s", seconds > 0 ? static_cast<double>(B) * o.steps / seconds : 0.0},
           {"seconds", seconds},
           {"first_loss", first_loss},
-          {"runtime", dev.record()}};
+          {"runtime", dev.record()},
+          {"phases", phases}};
 }
 
 }  // namespace cd

@@ -24,7 +24,9 @@ struct TrainBenchOptions {
 };
 
 // {"method", "backbone", "device", "precision", "batch", "steps", "parameters",
-//  "samples_per_s", "seconds", "first_loss", "runtime"}
+//  "samples_per_s", "seconds", "first_loss", "runtime",
+//  "phases": {"steps", "forward_ms", "backward_ms", "optimizer_ms"}: up to 10 more steps with the
+//  device synchronised between the phases, after the timed ones}
 nlohmann::json bench_train_step(const TrainBenchOptions& o);
 
 }  // namespace cd
