@@ -24,6 +24,8 @@ DEVICE = os.environ.get("DEVICE", "cuda")
 # "skipped"), so that a lease's time limit still gets the JSON; 0 for none.
 DEADLINE = float(os.environ.get("DEADLINE_S", "0"))
 START = time.time()
+# STEPS: which of the steps after the build run (default all): bench, train, unit.
+STEPS = set(os.environ.get("STEPS", "bench,train,unit").split(","))
 report = {"steps": {}, "errors": [], "skipped": []}
 
 
@@ -197,7 +199,7 @@ def main():
     # The training step alone: C++ (bench train) and the PyTorch-Python peer, same network,
     # batch and precision, inputs on the device.
     bench = []
-    for backbone in ("small", "resnet34"):
+    for backbone in (("small", "resnet34") if "bench" in STEPS else ()):
         for batch, precision in ((128, "fp32"), (512, "fp32"), (512, "bf16")):
             steps = "100" if backbone == "small" else "40"
             warmup = "10"
@@ -256,7 +258,7 @@ def main():
                 "train_loss": ep["train_loss"], "val_loss": ep.get("val_loss"),
                 "runtime": ck.get("runtime")}
 
-    if data:
+    if data and "train" in STEPS:
         report["data"] = data
         train = {}
         # (backbone, samples on the GPU, samples on the CPU cores)
@@ -273,8 +275,14 @@ def main():
                 train[f"{backbone}_agreement"] = agreement(backbone, cpu_n, cpu["train_loss"],
                                                            same["train_loss"])
         report["train"] = train
-    # Last, since a lease may end first: the unit tests (train.device's default, auto, resolves
-    # to CUDA here).
+    if "unit" in STEPS:
+        unit_tests(env)
+    finish(0 if not report["errors"] else 1)
+
+
+def unit_tests(env):
+    """Last, since a lease may end first: the unit tests (train.device's default, auto, resolves
+    to CUDA here) and the device tests of the e2e binary."""
     rc, out = run("unit_tests", ["ctest", "--test-dir", BUILD, "-L", "unit", "-j", str(min(JOBS, 8)),
                                  "--output-on-failure", "--timeout", "300"], env=env, check=False)
     m = re.search(r"(\d+)% tests passed, (\d+) tests failed out of (\d+)", out)
@@ -282,11 +290,11 @@ def main():
         "passed": int(m.group(3)) - int(m.group(2)) if m else None,
         "failed": int(m.group(2)) if m else None, "total": int(m.group(3)) if m else None,
         "failures": re.findall(r"\d+ - (\S+) \((?:Failed|Timeout|SEGFAULT|Exception)", out)}
+    if rc not in (0, None):  # a failed test fails the check
+        report["errors"].append(f"unit tests: exit {rc}, failed: {report['unit_tests']['failures']}")
     # The device tests of the e2e binary (the one-line errors skip where CUDA is usable).
     run("device_cli", ["ctest", "--test-dir", BUILD, "-R", "CliDevice", "--output-on-failure"],
         env=env, check=False)
-
-    finish(0 if not report["errors"] else 1)
 
 
 if __name__ == "__main__":
