@@ -112,6 +112,7 @@ import sys, json, csv
 import numpy as np
 import scipy.stats
 import statsmodels.api as sm
+import inspect
 from statsmodels.tsa.stattools import grangercausalitytests
 from statsmodels.stats.multitest import multipletests
 
@@ -145,10 +146,16 @@ def design(eps, L, regs):
         Xs.append(np.column_stack([ep[v][L - j:T - j] for v in regs for j in range(1, L + 1)]))
     return np.concatenate(Ys), np.vstack(Xs)
 
+def granger(data, L):
+    # statsmodels deprecated `verbose` (0.14) and later removed it; older ones print without it.
+    params = inspect.signature(grangercausalitytests).parameters
+    quiet = {'verbose': False} if 'verbose' in params else {}
+    return grangercausalitytests(data, maxlag=L, **quiet)
+
 def bivariate(path, L, names):
     ep, out = read(path)[0], {}
     for x in names:
-        res = grangercausalitytests(np.column_stack([ep['y'], ep[x]]), maxlag=L, verbose=False)
+        res = granger(np.column_stack([ep['y'], ep[x]]), L)
         F, p, df_den, df_num = res[L][0]['ssr_ftest']
         out[x] = {'f': float(F), 'p': float(p), 'df_den': int(df_den), 'df_num': int(df_num)}
     return out
@@ -163,7 +170,7 @@ def episodes(path, ep_col, L, cond, names):
         ssr_r, ssr_u = ssr(Y, Xr), ssr(Y, Xu)
         n, k_u = len(Y), Xu.shape[1] + 1
         F = ((ssr_r - ssr_u) / L) / (ssr_u / (n - k_u))
-        naive = grangercausalitytests(np.column_stack([whole['y'], whole[x]]), maxlag=L, verbose=False)
+        naive = granger(np.column_stack([whole['y'], whole[x]]), L)
         out[x] = {'f': F, 'p': float(scipy.stats.f.sf(F, L, n - k_u)), 'df_den': n - k_u,
                   'df_num': L, 'rows': n, 'naive_f': float(naive[L][0]['ssr_ftest'][0])}
     return out

@@ -71,6 +71,7 @@ TEST(PolicyAgent, LoadsACheckpointAndDrives) {
   const std::string ck = train_tiny(dir, "bc-oh", "throttle_brake");
   Settings s;
   s.ego.lateral = "route";  // the hand-made episodes hold (throttle, brake): no steer
+  s.eval.device = "cpu";    // compared below with the runner's CPU forward pass
   std::unique_ptr<Agent> agent = make_agent("bc-oh", ck, s);
   EXPECT_EQ(agent->name(), "bc-oh");
   EXPECT_EQ(agent->history(), 3);

@@ -86,6 +86,7 @@ Settings tiny_settings() {
   s.model.pedals = "two";  // the mechanics below by two pedals (signed: test_pedals.cpp)
   s.train.batch_size = 8;
   s.train.threads = 1;
+  s.train.device = "cpu";  // same bytes are the CPU's (a GPU machine would resolve auto to CUDA)
   s.train.lr = 1e-3;
   s.ego.lateral = "route";  // the hand-made episodes hold (throttle, brake): no steer
   return s;

@@ -108,7 +108,7 @@ TEST(SituationWeights, TheDefaultsAreTheRecipeResolvedPerDomain) {
   EXPECT_EQ(kept.train.situation_weights, "none");
 }
 
-// Training with no config (the built-in defaults, only the thread count set) records the
+// Training with no config (the built-in defaults, only the thread count and device set) records the
 // recipe's resolved settings and gives the same bytes as the recipe written out.
 TEST(SituationWeights, TrainingWithNoConfigRecordsTheRecipe) {
   torch::set_num_threads(1);
@@ -116,6 +116,7 @@ TEST(SituationWeights, TrainingWithNoConfigRecordsTheRecipe) {
   test::write_fake_folder(dir / "data", 3, {.frames = 40, .situation_causes = true});
   Settings defaults;
   defaults.train.threads = 1;
+  defaults.train.device = "cpu";  // same bytes are the CPU's
   defaults.train.epochs = 2;
   const std::string run = test::train_tiny_run(dir, "bc-oh", "defaults", defaults);
   const json record = json::parse(read_file_bytes(run + "/checkpoint.json"));

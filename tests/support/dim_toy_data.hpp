@@ -61,6 +61,7 @@ inline Settings toy_settings(int epochs = 4, int ensemble = 3) {
   s.train.batch_size = 16;
   s.train.lr = 3e-3;
   s.train.threads = 1;
+  s.train.device = "cpu";  // same bytes are the CPU's (a GPU machine would resolve auto to CUDA)
   s.train.val_fraction = 0.25;
   s.train.seed = 7;
   s.dim.features = 16;

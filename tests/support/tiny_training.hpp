@@ -17,6 +17,7 @@ inline Settings tiny_family_settings() {
   s.model.dropout = 0;
   s.train.batch_size = 16;
   s.train.threads = 1;
+  s.train.device = "cpu";  // same bytes are the CPU's (a GPU machine would resolve auto to CUDA)
   s.train.lr = 1e-3;
   s.train.epochs = 1;
   s.train.val_fraction = 0.34;
