@@ -7,7 +7,9 @@
 #   scripts/mujoco_paper.sh data     # expert episodes per env (the SAC experts; [mujoco.episodes])
 #   scripts/mujoco_paper.sh train    # bc-so bc-oh residual fca keyframe hd dagger, every env x seed
 #   scripts/mujoco_paper.sh eval     # every trained run, the expert and a random policy
-#   scripts/mujoco_paper.sh table    # return and copycat R2, mean +- sd over seeds -> table.md/.csv
+#   scripts/mujoco_paper.sh table    # return and copycat R2, mean +- sd over seeds -> table.md/.csv;
+#                                    # residual's IQM return against bc-oh's and keyframe's with
+#                                    # intervals -> table13-compare.md
 #   scripts/mujoco_paper.sh all      # the five in order
 #   scripts/mujoco_paper.sh lr-sweep # table 12's learning rate: bc-oh at 0.1 ... 1e-4 on the first
 #                                    # env's data, validation loss on its held-out episodes
@@ -118,6 +120,16 @@ PY
 
 table() {
   kept_report table return "$KEEP/eval"
+  # Table 13's claim, residual ahead: its IQM return against bc-oh's and keyframe's per env.
+  local cmp=$OUT/table13-compare.md
+  : > "$cmp.tmp"
+  for other in bc-oh keyframe; do
+    "$CD" report "$KEEP/eval" --compare residual "$other" --compare-metric iqm_return \
+      | sed -n '/^## residual vs/,$p' >> "$cmp.tmp"
+    echo >> "$cmp.tmp"
+  done
+  mv "$cmp.tmp" "$cmp"
+  keep_file "$cmp"
 }
 
 run_step() {

@@ -227,34 +227,89 @@ double interquartile_mean(std::vector<double> values) {
   return std::accumulate(first, last, 0.0) / static_cast<double>(last - first);
 }
 
+namespace {
+
+// The returns of one method, checked: at least one seed, each with episodes.
+void check_returns(const std::vector<std::vector<double>>& returns_by_seed) {
+  if (returns_by_seed.empty()) throw DataError("interquartile mean: no training seeds");
+  for (const std::vector<double>& returns : returns_by_seed)
+    if (returns.empty()) throw DataError("interquartile mean: a seed has no episodes");
+}
+
+// One two-level bootstrap draw into `drawn` (cleared first): S seeds with replacement, then each
+// drawn seed's episodes with replacement.
+void draw_two_level(const std::vector<std::vector<double>>& returns_by_seed, Rng& rng,
+                    std::vector<double>& drawn) {
+  drawn.clear();
+  const size_t seeds = returns_by_seed.size();
+  for (size_t i = 0; i < seeds; ++i) {
+    const std::vector<double>& returns = returns_by_seed[rng.below(seeds)];
+    for (size_t j = 0; j < returns.size(); ++j) drawn.push_back(returns[rng.below(returns.size())]);
+  }
+}
+
+std::vector<double> all_returns(const std::vector<std::vector<double>>& returns_by_seed) {
+  std::vector<double> all;
+  for (const std::vector<double>& returns : returns_by_seed)
+    all.insert(all.end(), returns.begin(), returns.end());
+  return all;
+}
+
+}  // namespace
+
 IqmInterval iqm_interval(const std::vector<std::vector<double>>& returns_by_seed, uint64_t seed,
                          int resamples) {
-  if (returns_by_seed.empty()) throw DataError("interquartile mean: no training seeds");
+  check_returns(returns_by_seed);
   if (resamples < 1) throw ConfigError("--resamples must be at least 1");
-  std::vector<double> all;
-  for (const std::vector<double>& returns : returns_by_seed) {
-    if (returns.empty()) throw DataError("interquartile mean: a seed has no episodes");
-    all.insert(all.end(), returns.begin(), returns.end());
-  }
-  const size_t seeds = returns_by_seed.size();
   std::vector<double> iqms, drawn;
   iqms.reserve(static_cast<size_t>(resamples));
   for (int b = 0; b < resamples; ++b) {
     Rng rng(derive_seed(seed, static_cast<uint64_t>(b)));
-    drawn.clear();
-    for (size_t i = 0; i < seeds; ++i) {
-      const std::vector<double>& returns = returns_by_seed[rng.below(seeds)];
-      for (size_t j = 0; j < returns.size(); ++j)
-        drawn.push_back(returns[rng.below(returns.size())]);
-    }
+    draw_two_level(returns_by_seed, rng, drawn);
     iqms.push_back(interquartile_mean(drawn));
   }
   std::sort(iqms.begin(), iqms.end());
   IqmInterval out;
-  out.iqm = interquartile_mean(all);
+  out.iqm = interquartile_mean(all_returns(returns_by_seed));
   out.lo = sorted_quantile(iqms, 0.025);
   out.hi = sorted_quantile(iqms, 0.975);
   out.resamples = resamples;
+  return out;
+}
+
+IqmComparison compare_iqm(const std::vector<std::vector<double>>& a_by_seed,
+                          const std::vector<std::vector<double>>& b_by_seed, uint64_t seed,
+                          int resamples) {
+  check_returns(a_by_seed);
+  check_returns(b_by_seed);
+  if (resamples < 1) throw ConfigError("--resamples must be at least 1");
+  std::vector<double> differences, drawn;
+  differences.reserve(static_cast<size_t>(resamples));
+  for (int b = 0; b < resamples; ++b) {
+    Rng rng(derive_seed(seed, static_cast<uint64_t>(b)));
+    draw_two_level(a_by_seed, rng, drawn);
+    const double a = interquartile_mean(drawn);
+    draw_two_level(b_by_seed, rng, drawn);
+    differences.push_back(a - interquartile_mean(drawn));
+  }
+  std::sort(differences.begin(), differences.end());
+  IqmComparison out;
+  out.a = interquartile_mean(all_returns(a_by_seed));
+  out.b = interquartile_mean(all_returns(b_by_seed));
+  out.difference = out.a - out.b;
+  out.lo = sorted_quantile(differences, 0.025);
+  out.hi = sorted_quantile(differences, 0.975);
+  out.resamples = resamples;
+  out.verdict = out.lo > 0 ? Verdict::a_better : out.hi < 0 ? Verdict::b_better
+                                                            : Verdict::not_resolved;
+  // rliable's probability of improvement over the seed pairs, each seed by its own IQM.
+  double wins = 0;
+  for (const std::vector<double>& sa : a_by_seed)
+    for (const std::vector<double>& sb : b_by_seed) {
+      const double ia = interquartile_mean(sa), ib = interquartile_mean(sb);
+      wins += ia > ib ? 1.0 : ia == ib ? 0.5 : 0.0;
+    }
+  out.p_improvement = wins / static_cast<double>(a_by_seed.size() * b_by_seed.size());
   return out;
 }
 

@@ -98,6 +98,21 @@ struct IqmInterval {
 IqmInterval iqm_interval(const std::vector<std::vector<double>>& returns_by_seed, uint64_t seed,
                          int resamples = 10000);
 
+// A's IQM return less B's (MuJoCo-Image, one environment; more is better), with a 95%
+// percentile interval: each resample draws A's and B's two-level bootstraps (as iqm_interval)
+// from one Rng(derive_seed(seed, b)), A first; A's and B's seeds are independent trainings, so
+// they are drawn independently. The verdict: the interval above 0 (a_better) or below (b_better).
+// p_improvement: the share of (A seed, B seed) pairs whose seed IQM is higher for A, ties 1/2.
+// Throws as iqm_interval.
+struct IqmComparison {
+  double a = 0, b = 0, difference = 0, lo = 0, hi = 0, p_improvement = 0.5;
+  Verdict verdict = Verdict::not_resolved;
+  int resamples = 0;
+};
+IqmComparison compare_iqm(const std::vector<std::vector<double>>& a_by_seed,
+                          const std::vector<std::vector<double>>& b_by_seed, uint64_t seed,
+                          int resamples = 10000);
+
 // The variance components of one method on one condition. episode_variance: the variance of one
 // 0/1 episode within a seed (mean over seeds of p_s(1-p_s) n_s/(n_s-1), pooled over the seed's
 // tasks, so differences between tasks count as episode noise and the plan errs on the safe

@@ -518,20 +518,34 @@ CellStats mean_std(const std::vector<double>& values) {
   return s;
 }
 
+namespace {
+
+// A MuJoCo-Image cell's returns, one list per run (training seed); nullopt when a run does not
+// keep all its episodes.
+std::optional<std::vector<std::vector<double>>> returns_by_seed(
+    const std::vector<const RunResult*>& runs) {
+  std::vector<std::vector<double>> returns;
+  for (const RunResult* r : runs) {
+    auto counted = r->summary.find("episodes");
+    if (!r->mujoco || r->episodes.empty() || counted == r->summary.end() || !counted->second ||
+        *counted->second != static_cast<double>(r->episodes.size()))
+      return std::nullopt;
+    std::vector<double>& seed = returns.emplace_back();
+    for (const RunEpisode& e : r->episodes) seed.push_back(e.ret);
+  }
+  return returns;
+}
+
+}  // namespace
+
 std::optional<CellStats> ReportTable::stats(const std::string& label, const std::string& suite,
                                             const std::string& key) const {
   auto it = cells.find({label, suite});
   if (it == cells.end()) return std::nullopt;
   if (key == kIqmReturn) {
-    std::vector<std::vector<double>> returns;
-    for (const RunResult* r : it->second) {
-      auto counted = r->summary.find("episodes");
-      if (!r->mujoco || r->episodes.empty() || counted == r->summary.end() || !counted->second ||
-          *counted->second != static_cast<double>(r->episodes.size()))
-        return CellStats{};
-      std::vector<double>& seed = returns.emplace_back();
-      for (const RunEpisode& e : r->episodes) seed.push_back(e.ret);
-    }
+    const std::optional<std::vector<std::vector<double>>> by_seed = returns_by_seed(it->second);
+    if (!by_seed) return CellStats{};
+    const std::vector<std::vector<double>>& returns = *by_seed;
     const IqmInterval q = iqm_interval(returns, bootstrap_seed, resamples);
     CellStats stats;
     stats.n = static_cast<int>(returns.size());
@@ -648,6 +662,42 @@ nlohmann::json comparison_json(const Comparison& c) {
           {"episode_only", c.episode_only}};
 }
 
+// --compare with iqm_return (MuJoCo-Image): per environment, A's IQM return less B's with its
+// bootstrap interval (bench/intervals: compare_iqm); no row over environments, whose returns
+// have different scales.
+ComparisonReport render_iqm_comparison(const ReportTable& table, const std::string& a,
+                                       const std::string& b) {
+  std::string md = "## " + a + " vs " + b + ": IQM return (A - B, 95% two-level bootstrap "
+                   "interval, " + std::to_string(table.resamples) + " resamples, seed " +
+                   std::to_string(table.bootstrap_seed) + "; P(A > B) over seed pairs; higher is "
+                   "better)\n\n| environment | A | B | A - B [95%] | P(A > B) | verdict |\n"
+                   "|---|---:|---:|---:|---:|---|\n";
+  nlohmann::json conditions = nlohmann::json::array();
+  for (const std::string& column : table.suites) {
+    auto ia = table.cells.find({a, column}), ib = table.cells.find({b, column});
+    if (ia == table.cells.end() || ib == table.cells.end()) continue;
+    const auto ra = returns_by_seed(ia->second), rb = returns_by_seed(ib->second);
+    if (!ra || !rb) continue;
+    const IqmComparison c = compare_iqm(*ra, *rb, table.bootstrap_seed, table.resamples);
+    auto num = [](double v) { return format_number(v, "%.1f"); };
+    md += "| " + column + " | " + num(c.a) + " | " + num(c.b) + " | " + num(c.difference) +
+          " [" + num(c.lo) + ", " + num(c.hi) + "] | " + format_number(c.p_improvement, "%.2f") +
+          " | " + verdict_text(c.verdict) + " |\n";
+    conditions.push_back({{"condition", column}, {"a", c.a}, {"b", c.b},
+                          {"difference", c.difference}, {"lo", c.lo}, {"hi", c.hi},
+                          {"p_improvement", c.p_improvement},
+                          {"verdict", verdict_text(c.verdict)},
+                          {"seeds_a", static_cast<int>(ra->size())},
+                          {"seeds_b", static_cast<int>(rb->size())}});
+  }
+  if (conditions.empty())
+    throw ConfigError("--compare: " + a + " and " + b + " share no MuJoCo-Image environment "
+                      "whose runs keep their episodes");
+  const nlohmann::json out = {{"a", a}, {"b", b}, {"metric", kIqmReturn},
+                              {"higher_is_better", true}, {"conditions", conditions}};
+  return {md, out.dump()};
+}
+
 }  // namespace
 
 ComparisonReport render_comparison(const ReportTable& table, const std::string& a,
@@ -660,9 +710,10 @@ ComparisonReport render_comparison(const ReportTable& table, const std::string& 
                           for (const auto& l : table.labels) all += (all.empty() ? "" : ", ") + l;
                           return all;
                         }() + ")");
+  if (key == kIqmReturn) return render_iqm_comparison(table, a, b);
   if (!episode_indicator(key))
     throw ConfigError("--compare-metric: '" + key + "' is not a share of episodes (e.g. "
-                      "success_rate, collision_rate, copycat_rate)");
+                      "success_rate, collision_rate, copycat_rate) or iqm_return");
   const auto ra = runs_by_column(table, a, key), rb = runs_by_column(table, b, key);
   std::vector<SeedRuns> all_a, all_b;
   // Success is the one rate where more is better; for the failure rates a lower rate wins.

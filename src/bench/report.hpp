@@ -171,8 +171,12 @@ std::string render_markdown(const ReportTable& table, const std::vector<MetricSe
 // episodes, and over those columns (the k-th run of a label in each column, in path order, is
 // its k-th training seed), with the paired 95% interval, P(A > B) and the verdict
 // (bench/intervals.hpp: compare). The verdict names the better label: the higher rate for
-// success_rate, the lower one for every failure rate (collision, error, copycat, ...). Markdown, and the same as JSON. Throws ConfigError for a
-// label without runs, a key that is not a rate, or no column where both can be compared.
+// success_rate, the lower one for every failure rate (collision, error, copycat, ...).
+// With iqm_return (MuJoCo-Image): per environment, A's IQM return less B's with its two-level
+// bootstrap interval (bench/intervals.hpp: compare_iqm, the table's bootstrap_seed and
+// resamples), no row over environments. Markdown, and the same as JSON. Throws ConfigError for
+// a label without runs, a key that is neither a rate nor iqm_return, or no column where both
+// can be compared.
 struct ComparisonReport {
   std::string markdown;
   std::string json;  // one JSON object

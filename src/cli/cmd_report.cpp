@@ -93,7 +93,8 @@ void add_report(CLI::App& app) {
       ->expected(2)
       ->type_name("A B");
   sub->add_option("--compare-metric", args->compare_metric,
-                  "the rate --compare and --power use (default success_rate)")
+                  "the rate --compare and --power use (default success_rate); --compare also takes "
+                  "iqm_return (MuJoCo-Image)")
       ->type_name("KEY");
   sub->add_flag("--power", args->power,
                 "per label and condition: the half-width reached and the seeds needed to "

@@ -281,6 +281,56 @@ TEST(Intervals, IqmIntervalRefusesWhatItCannotUse) {
   EXPECT_THROW(iqm_interval({{1.0}}, 1, 0), ConfigError);
 }
 
+// compare_iqm: A's IQM less B's. Against a B whose every return is c, each resample's B IQM is c
+// and A's draws are iqm_interval's (A is drawn first from the same generator): the interval is
+// A's own shifted by c.
+TEST(Intervals, IqmComparisonAgainstAConstantIsTheShiftedIqmInterval) {
+  const auto a = synthetic_returns();
+  const IqmInterval alone = iqm_interval(a, 11, 400);
+  const IqmComparison c = compare_iqm(a, {{50.0, 50.0, 50.0}}, 11, 400);
+  std::vector<double> all;
+  for (const auto& r : a) all.insert(all.end(), r.begin(), r.end());
+  EXPECT_EQ(c.a, interquartile_mean(all));
+  EXPECT_EQ(c.b, 50.0);
+  EXPECT_DOUBLE_EQ(c.difference, c.a - 50.0);
+  EXPECT_NEAR(c.lo, alone.lo - 50.0, 1e-9);
+  EXPECT_NEAR(c.hi, alone.hi - 50.0, 1e-9);
+  EXPECT_EQ(c.resamples, 400);
+  // Same seed, same bytes; another seed, another interval around the same estimate.
+  const IqmComparison again = compare_iqm(a, {{50.0, 50.0, 50.0}}, 11, 400);
+  EXPECT_TRUE(same_bytes(c.lo, again.lo) && same_bytes(c.hi, again.hi));
+  const IqmComparison other = compare_iqm(a, {{50.0, 50.0, 50.0}}, 12, 400);
+  EXPECT_FALSE(same_bytes(c.lo, other.lo) && same_bytes(c.hi, other.hi));
+  EXPECT_TRUE(same_bytes(c.difference, other.difference));
+}
+
+TEST(Intervals, IqmComparisonVerdictAndProbabilityOfImprovement) {
+  // Flat returns: every resample gives 3 - 1; every A seed beats every B seed.
+  const IqmComparison flat = compare_iqm({{3, 3}, {3, 3, 3}}, {{1, 1}}, 1, 50);
+  EXPECT_EQ(flat.difference, 2);
+  EXPECT_EQ(flat.lo, 2);
+  EXPECT_EQ(flat.hi, 2);
+  EXPECT_EQ(flat.verdict, Verdict::a_better);
+  EXPECT_EQ(flat.p_improvement, 1.0);
+  EXPECT_EQ(compare_iqm({{1, 1}}, {{3, 3}, {3, 3, 3}}, 1, 50).verdict, Verdict::b_better);
+  // A method against itself: a difference of 0 inside its interval, seed pairs tie on average.
+  const auto a = synthetic_returns();
+  const IqmComparison self = compare_iqm(a, a, 5, 400);
+  EXPECT_EQ(self.difference, 0);
+  EXPECT_LT(self.lo, 0);
+  EXPECT_GT(self.hi, 0);
+  EXPECT_EQ(self.verdict, Verdict::not_resolved);
+  EXPECT_DOUBLE_EQ(self.p_improvement, 0.5);
+  // Seeds 100 apart (synthetic_returns): A's seeds s + 3 against B's seeds s: P(A > B) by hand.
+  // A = seeds {3, 4}, B = seeds {0, 1, 2}: every pair has A's seed higher.
+  const IqmComparison ahead = compare_iqm({a[3], a[4]}, {a[0], a[1], a[2]}, 5, 400);
+  EXPECT_EQ(ahead.p_improvement, 1.0);
+  EXPECT_GT(ahead.difference, 0);
+  EXPECT_THROW(compare_iqm({}, a, 1), DataError);
+  EXPECT_THROW(compare_iqm(a, {{1.0}, {}}, 1), DataError);
+  EXPECT_THROW(compare_iqm(a, a, 1, 0), ConfigError);
+}
+
 TEST(Intervals, VarianceComponentsSplitSeedFromEpisodeNoise) {
   // Seed means 3/4 and 1/4 of 4 episodes: episode variance p(1-p) n/(n-1) = 3/16 * 4/3 = 1/4
   // for both; s^2 of the seed means = 2 * (1/4)^2 = 1/8, less 1/4 / 4: seed variance 1/16.

@@ -701,6 +701,30 @@ TEST(ReportIntervals, MujocoReturnsGetTheirIqmAndASeededBootstrapInterval) {
   EXPECT_TRUE(has(md.out, "6.5 [")) << md.out;
   EXPECT_TRUE(has(md.out, "IQM return")) << md.out;
   expect_one_line_error(test::run_cli({"report", dir / "runs", "--resamples", "0"}), "resamples");
+
+  // --compare with iqm_return: a second label, its returns 10 higher, against the first.
+  const std::vector<std::vector<double>> higher = {{11, 15, 19, 110}, {12, 16, 20, 14},
+                                                   {13, 17, 21, 18}};
+  for (int s = 0; s < 3; ++s) {
+    nlohmann::json eps = nlohmann::json::array();
+    for (int i = 0; i < 4; ++i)
+      eps.push_back({{"index", i}, {"seed", i}, {"return", higher[s][i]}, {"length", 100}});
+    put(dir / ("runs/t" + std::to_string(s)),
+        {{"agent", "residual"}, {"env", "halfcheetah"}, {"episodes", eps},
+         {"summary", {{"episodes", 4}, {"mean_return", 0.0}, {"mean_length", 100}}}});
+  }
+  CommandResult cmp = test::run_cli({"report", dir / "runs", "--json", "--compare", "residual",
+                                     "bc-oh", "--compare-metric", "iqm_return"});
+  ASSERT_EQ(cmp.exit_code, 0) << cmp.describe();
+  const nlohmann::json row = nlohmann::json::parse(cmp.out)["compare"]["conditions"][0];
+  const IqmComparison want_cmp = compare_iqm(higher, returns, 0, 10000);
+  EXPECT_EQ(row["condition"], "halfcheetah");
+  EXPECT_DOUBLE_EQ(row["a"].get<double>(), 16.5);  // 6.5 + 10, by hand as above
+  EXPECT_DOUBLE_EQ(row["difference"].get<double>(), 10.0);
+  EXPECT_DOUBLE_EQ(row["lo"].get<double>(), want_cmp.lo);
+  EXPECT_DOUBLE_EQ(row["hi"].get<double>(), want_cmp.hi);
+  EXPECT_EQ(row["verdict"], verdict_text(want_cmp.verdict));
+  EXPECT_EQ(row["p_improvement"], 1.0);  // each residual seed is its bc-oh seed plus 10
 }
 
 // Seed 000's inertia lives in the taxonomy's fields: records from before the taxonomy give
