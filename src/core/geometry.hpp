@@ -81,4 +81,46 @@ inline Vec2 point_along_polyline(const Polyline& line, Vec2 from, double ahead) 
   return line.back();
 }
 
+// Road markings, shared by the bird's-eye view and the front camera. Dashes are centred on
+// multiples of the period along s, so the pattern is symmetric under s -> -s: the two opposite
+// lanes that share a centre line (directions d and -d) paint the same dashes without having to
+// agree on a canonical direction.
+inline bool dash_painted(double s, double dash, double period) {
+  double m = std::fmod(s + 0.5 * dash, period);
+  if (m < 0) m += period;
+  return m < dash;
+}
+
+inline Polyline without_repeats(const Polyline& in) {
+  Polyline out;
+  for (const Vec2& p : in)
+    if (out.empty() || (p - out.back()).norm() > 1e-9) out.push_back(p);
+  return out;
+}
+
+// The polyline (at least 2 points, no repeats) moved `offset` metres to its left (negative:
+// right), with mitred joints so consecutive offset segments meet; the miter is capped at 4x the
+// offset at hairpins.
+inline Polyline offset_polyline(const Polyline& pts, double offset) {
+  std::vector<Vec2> normal(pts.size() - 1);
+  for (size_t i = 0; i + 1 < pts.size(); ++i) {
+    Vec2 d = pts[i + 1] - pts[i];
+    normal[i] = Vec2{-d.y, d.x} * (1.0 / d.norm());
+  }
+  Polyline out(pts.size());
+  out.front() = pts.front() + normal.front() * offset;
+  out.back() = pts.back() + normal.back() * offset;
+  for (size_t i = 1; i + 1 < pts.size(); ++i) {
+    Vec2 m = normal[i - 1] + normal[i];
+    double len = m.norm();
+    if (len < 1e-6) {
+      out[i] = pts[i] + normal[i] * offset;
+      continue;
+    }
+    m = m * (1.0 / len);
+    out[i] = pts[i] + m * (offset / std::max(m.dot(normal[i]), 0.25));
+  }
+  return out;
+}
+
 }  // namespace cd

@@ -1,12 +1,13 @@
 #pragma once
-// Headless offscreen rendering: an OSMesa GL context of our own (no display, no window), MuJoCo's
-// render context on it, and its offscreen framebuffer sized to the frame.
+// Headless offscreen rendering: the GL context of render/gl_context (OSMesa, no display, no
+// window), MuJoCo's render context on it, and its offscreen framebuffer sized to the frame.
 #include <cstdint>
 #include <vector>
 
 #include <mujoco/mujoco.h>
 
 #include "mujoco/env_spec.hpp"
+#include "render/gl_context.hpp"
 
 namespace cd::mj {
 
@@ -23,12 +24,9 @@ class OffscreenRenderer {
   void render(const mjModel& model, mjData& data, const CameraSpec& camera, uint8_t* out);
 
  private:
-  void make_current();
-
   int width_, height_;
-  void* gl_ = nullptr;  // OSMesaContext
-  std::vector<uint8_t> gl_buffer_;  // the context's default framebuffer (unused by MuJoCo)
-  std::vector<uint8_t> rgb_;        // interleaved, bottom row first, as read back
+  GlContext gl_;              // its default framebuffer is unused: MuJoCo draws into its own
+  std::vector<uint8_t> rgb_;  // interleaved, bottom row first, as read back
   mjvScene scene_;
   mjvOption option_;
   mjrContext context_;

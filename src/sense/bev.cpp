@@ -35,46 +35,6 @@ double marking_half_width(const BevConfig& cfg, double gres) {
   return 0.5 * std::max(cfg.marking_width, cfg.metres_per_pixel + gres * std::sqrt(2.0));
 }
 
-// Dashes are centred on multiples of the period along s, so the pattern is symmetric under
-// s -> -s: the two opposite lanes that share a centre line (directions d and -d) paint the
-// same dashes without having to agree on a canonical direction.
-bool dash_painted(double s, double dash, double period) {
-  double m = std::fmod(s + 0.5 * dash, period);
-  if (m < 0) m += period;
-  return m < dash;
-}
-
-Polyline without_repeats(const Polyline& in) {
-  Polyline out;
-  for (const Vec2& p : in)
-    if (out.empty() || (p - out.back()).norm() > 1e-9) out.push_back(p);
-  return out;
-}
-
-// The polyline moved `offset` metres to its left (negative: right), with mitred joints so
-// consecutive offset segments meet; the miter is capped at 4x the offset at hairpins.
-Polyline offset_polyline(const Polyline& pts, double offset) {
-  std::vector<Vec2> normal(pts.size() - 1);
-  for (size_t i = 0; i + 1 < pts.size(); ++i) {
-    Vec2 d = pts[i + 1] - pts[i];
-    normal[i] = Vec2{-d.y, d.x} * (1.0 / d.norm());
-  }
-  Polyline out(pts.size());
-  out.front() = pts.front() + normal.front() * offset;
-  out.back() = pts.back() + normal.back() * offset;
-  for (size_t i = 1; i + 1 < pts.size(); ++i) {
-    Vec2 m = normal[i - 1] + normal[i];
-    double len = m.norm();
-    if (len < 1e-6) {
-      out[i] = pts[i] + normal[i] * offset;
-      continue;
-    }
-    m = m * (1.0 / len);
-    out[i] = pts[i] + m * (offset / std::max(m.dot(normal[i]), 0.25));
-  }
-  return out;
-}
-
 // Sets `bit` in the pixels of the packed H x W image whose centres lie in the rectangle
 // centred at (rc, cc) with unit axis (ur, uc) and half-extents hl along it and hw across it,
 // all in pixel units.

@@ -1,0 +1,300 @@
+// needs: sumo (the front camera's GL context comes with the driving world's build)
+// The front camera (SPEC section 16): geometry computed by hand from the pixel convention of
+// sense/camera.hpp, never golden images.
+#include "sense/camera.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "core/error.hpp"
+
+namespace cd {
+namespace {
+
+// 288 x 80, hfov 90: f = 144, centre (row 40, col 144); the camera 0.8 m ahead of the ego's
+// centre, 1.4 m up, level.
+CameraConfig config() { return CameraConfig{}; }
+
+struct Pixel {
+  int r, g, b;
+};
+
+class Frame {
+ public:
+  Frame(const CameraConfig& c, std::vector<uint8_t> bytes) : c_(c), bytes_(std::move(bytes)) {}
+  Pixel at(int row, int col) const {
+    const size_t plane = size_t(c_.width) * c_.height, o = size_t(row) * c_.width + col;
+    return {bytes_[o], bytes_[plane + o], bytes_[2 * plane + o]};
+  }
+  Pixel at(const PixelPoint& p) const { return at(int(std::floor(p.row)), int(std::floor(p.col))); }
+  const std::vector<uint8_t>& bytes() const { return bytes_; }
+
+ private:
+  CameraConfig c_;
+  std::vector<uint8_t> bytes_;
+};
+
+Frame render(CameraRenderer& renderer, const CameraScene& scene) {
+  std::vector<uint8_t> out(renderer.frame_bytes());
+  renderer.render(scene, out.data());
+  return Frame(renderer.config(), std::move(out));
+}
+
+bool reddish(Pixel p) { return p.r > 60 && p.r > 2 * p.g && p.r > 2 * p.b; }
+
+CameraScene::Vehicle red_car(Vec2 centre) {
+  CameraScene::Vehicle v;
+  v.box = Box{centre, 0.0, 4.0, 2.0};
+  v.height = 1.5;
+  v.colour = 0xff0000;
+  return v;
+}
+
+TEST(CameraGeometry, ProjectsAsComputedByHand) {
+  const CameraConfig c = config();
+  const Pose2 east{{10, 20}, 0.0};
+  // 10 m ahead of the camera at its own height: the image centre.
+  auto p = camera_project(c, east, {20.8, 20}, 1.4);
+  ASSERT_TRUE(p);
+  EXPECT_NEAR(p->row, 40, 1e-9);
+  EXPECT_NEAR(p->col, 144, 1e-9);
+  EXPECT_NEAR(p->depth, 10, 1e-9);
+  // 1 m to the left on the ground: col 144 - 144 * 1/10, row 40 + 144 * 1.4/10.
+  p = camera_project(c, east, {20.8, 21}, 0.0);
+  EXPECT_NEAR(p->col, 129.6, 1e-9);
+  EXPECT_NEAR(p->row, 60.16, 1e-9);
+  // Heading north: forward is +y, left is -x.
+  const Pose2 north{{0, 0}, M_PI / 2};
+  p = camera_project(c, north, {-2, 10.8}, 1.4);
+  EXPECT_NEAR(p->col, 144 - 144 * 2 / 10.0, 1e-9);
+  EXPECT_NEAR(p->row, 40, 1e-9);
+  // Behind the camera: nothing.
+  EXPECT_FALSE(camera_project(c, east, {5, 20}, 1.0));
+  // Pitched 10 degrees down: a point on the optical axis is the centre, 8 m along it.
+  CameraConfig pitched = c;
+  pitched.pitch_deg = 10;
+  const double t = 10 * M_PI / 180;
+  p = camera_project(pitched, east, {10.8 + 8 * std::cos(t), 20}, 1.4 - 8 * std::sin(t));
+  EXPECT_NEAR(p->row, 40, 1e-9);
+  EXPECT_NEAR(p->col, 144, 1e-9);
+  EXPECT_NEAR(p->depth, 8, 1e-9);
+  // CILRS's 200 x 88 is one setting away: f = 100 at 90 degrees.
+  CameraConfig cilrs = c;
+  cilrs.width = 200;
+  cilrs.height = 88;
+  p = camera_project(cilrs, east, {20.8, 21}, 1.4);
+  EXPECT_NEAR(p->col, 100 - 100 * 0.1, 1e-9);
+  EXPECT_NEAR(p->row, 44, 1e-9);
+}
+
+TEST(CameraRender, ABoxLandsOnThePixelsItsProjectionGives) {
+  RoadMap none;
+  CameraRenderer renderer(none, config());
+  const Pose2 ego{{0, 0}, 0.0};
+  CameraScene scene;
+  scene.ego = ego;
+  scene.vehicles.push_back(red_car({12, 0}));
+  const Frame f = render(renderer, scene);
+  // The box's silhouette from behind is the bounding box of its corners' projections.
+  double r0 = 1e9, r1 = -1e9, c0 = 1e9, c1 = -1e9;
+  for (double x : {10.0, 14.0})
+    for (double y : {-1.0, 1.0})
+      for (double z : {0.0, 1.5}) {
+        const auto p = camera_project(renderer.config(), ego, {x, y}, z);
+        ASSERT_TRUE(p);
+        r0 = std::min(r0, p->row), r1 = std::max(r1, p->row);
+        c0 = std::min(c0, p->col), c1 = std::max(c1, p->col);
+      }
+  // By hand for the rear face, 9.2 m from the camera: cols 144 -+ 144/9.2, rows 40 - 14.4/9.2
+  // to 40 + 201.6/9.2.
+  EXPECT_NEAR(c0, 144 - 144 / 9.2, 1e-9);
+  EXPECT_NEAR(r1, 40 + 201.6 / 9.2, 1e-9);
+  int inside = 0, outside = 0;
+  for (int r = 0; r < 80; ++r)
+    for (int c = 0; c < 288; ++c) {
+      const double rc = r + 0.5, cc = c + 0.5;
+      const bool in = rc > r0 + 1 && rc < r1 - 1 && cc > c0 + 1 && cc < c1 - 1;
+      const bool out = rc < r0 - 1 || rc > r1 + 1 || cc < c0 - 1 || cc > c1 + 1;
+      if (in) {
+        ++inside;
+        EXPECT_TRUE(reddish(f.at(r, c))) << r << "," << c;
+      } else if (out) {
+        ++outside;
+        EXPECT_FALSE(reddish(f.at(r, c))) << r << "," << c;
+      }
+    }
+  EXPECT_GT(inside, 300);
+  EXPECT_GT(outside, 20000);
+  // Above the horizon the sky, below it the ground, in the weather's colours.
+  const CameraWeather& w = camera_weather("clear-noon");
+  const Pixel sky = f.at(5, 5), ground = f.at(75, 5);
+  EXPECT_NEAR(sky.b, std::lround(w.sky[2] * 255), 1);
+  EXPECT_NEAR(ground.g, std::lround(w.ground[1] * 255), 1);
+}
+
+TEST(CameraRender, ALeaderAt10mCoversMorePixelsThanAt30m) {
+  RoadMap none;
+  CameraRenderer renderer(none, config());
+  auto red_pixels = [&](double ahead) {
+    CameraScene scene;
+    scene.ego = Pose2{{0, 0}, 0.0};
+    scene.vehicles.push_back(red_car({ahead, 0}));
+    const Frame f = render(renderer, scene);
+    int n = 0;
+    for (int r = 0; r < 80; ++r)
+      for (int c = 0; c < 288; ++c) n += reddish(f.at(r, c));
+    return n;
+  };
+  const int near = red_pixels(10.8 + 2), far = red_pixels(30.8 + 2);
+  EXPECT_GT(far, 20);
+  // The rear face's area goes as 1/depth^2: 9x from 30 to 10 m.
+  EXPECT_GT(near, 6 * far) << near << " vs " << far;
+  EXPECT_LT(near, 14 * far) << near << " vs " << far;
+}
+
+TEST(CameraRender, TheLitLampFollowsTheLightAndIsAFewPixelsAt30m) {
+  RoadMap none;
+  CameraRenderer renderer(none, config());
+  const Pose2 ego{{0, 0}, 0.0};
+  const LightHeadGeometry& g = kLightHead;
+  for (double ahead : {15.8, 30.8}) {
+    CameraScene::Light light;
+    light.position = {ahead, 3.0};
+    light.facing = M_PI;  // looking back at the ego
+    const Vec2 face = light.position - Vec2{0.5 * g.head_depth + 0.01, 0};
+    auto lamp = [&](int k) {
+      return *camera_project(renderer.config(), ego, face, g.lamp_centre_height(k));
+    };
+    // Its size in pixels: f * lamp_size / depth, about 1.1 px at 30 m.
+    const double px = 144 * g.lamp_size / (ahead - 0.8);
+    EXPECT_LT(px, ahead > 20 ? 1.5 : 3.0);
+    for (char state : {'r', 'y', 'g'}) {
+      CameraScene scene;
+      scene.ego = ego;
+      light.state = state;
+      scene.lights = {light};
+      const Frame f = render(renderer, scene);
+      const Pixel red = f.at(lamp(0)), yellow = f.at(lamp(1)), green = f.at(lamp(2));
+      if (ahead > 20) {  // at 30 m only the lit lamp's hue is asked of its pixel
+        if (state == 'r') EXPECT_GT(red.r, 2 * red.g) << ahead;
+        if (state == 'g') EXPECT_GT(green.g, 2 * green.r) << ahead;
+        continue;
+      }
+      if (state == 'r') {
+        EXPECT_GT(red.r, 200);
+        EXPECT_LT(red.g, 60);
+        EXPECT_LT(green.g, 60);
+      } else if (state == 'y') {
+        EXPECT_GT(yellow.r, 200);
+        EXPECT_GT(yellow.g, 150);
+        EXPECT_LT(yellow.b, 60);
+        EXPECT_LT(red.r, 60);
+      } else {
+        EXPECT_GT(green.g, 200);
+        EXPECT_LT(green.r, 80);
+        EXPECT_LT(red.r, 60);
+      }
+    }
+  }
+}
+
+TEST(CameraRender, BrakeLightsLightWhenTheLeaderBrakes) {
+  RoadMap none;
+  CameraRenderer renderer(none, config());
+  const Pose2 ego{{0, 0}, 0.0};
+  CameraScene scene;
+  scene.ego = ego;
+  scene.vehicles.push_back(red_car({12, 0}));
+  scene.vehicles[0].colour = 0x2040c0;  // a blue car, so the lamp's red stands out
+  // The left lamp's centre: 0.02 m behind the rear face, 0.75 m left, 0.85 m up.
+  const auto p = *camera_project(renderer.config(), ego, {12 - 2.02, 0.75}, 0.85);
+  const Pixel off = render(renderer, scene).at(p);
+  scene.vehicles[0].braking = true;
+  const Pixel on = render(renderer, scene).at(p);
+  EXPECT_GT(on.r, 230);
+  EXPECT_LT(off.r, 100);
+  EXPECT_GT(off.r, 2 * off.b);  // dark red, not the car's blue
+}
+
+TEST(CameraRender, RoadsMarkingsAndGroundWhereTheMapPutsThem) {
+  RoadMap map;
+  LaneGeom lane;
+  lane.id = "a_0";
+  lane.edge = "a";
+  lane.width = 3.2;
+  lane.shape = {{-50, 0}, {200, 0}};
+  map.add(lane);
+  CameraRenderer renderer(map, config());
+  const Pose2 ego{{0, 0}, 0.0};
+  CameraScene scene;
+  scene.ego = ego;
+  const Frame f = render(renderer, scene);
+  const CameraWeather& w = camera_weather("clear-noon");
+  auto is = [](Pixel p, const float c[3]) {
+    return std::abs(p.r - std::lround(c[0] * 255)) <= 1 &&
+           std::abs(p.g - std::lround(c[1] * 255)) <= 1 &&
+           std::abs(p.b - std::lround(c[2] * 255)) <= 1;
+  };
+  // The lane's centre 10 m ahead, and 6 m to its left (off the road).
+  EXPECT_TRUE(is(f.at(*camera_project(renderer.config(), ego, {10.8, 0}, 0)), w.road));
+  EXPECT_TRUE(is(f.at(*camera_project(renderer.config(), ego, {10.8, 6}, 0)), w.ground));
+  // The right border is a solid line (no right neighbour): every 1 m from 6 to 12 m.
+  for (double x = 6; x <= 12; x += 1)
+    EXPECT_TRUE(is(f.at(*camera_project(renderer.config(), ego, {x + 0.8, -1.6}, 0)), w.marking))
+        << x;
+  // The left border is dashed: 3 m painted around multiples of 6 m, 3 m gap around 3 + 6k.
+  EXPECT_TRUE(is(f.at(*camera_project(renderer.config(), ego, {12.0, 1.6}, 0)), w.marking));
+  // In a gap the border is the road's edge: its pixel is the road's or the ground's colour.
+  const Pixel gap = f.at(*camera_project(renderer.config(), ego, {9.0, 1.6}, 0));
+  EXPECT_TRUE(is(gap, w.road) || is(gap, w.ground)) << gap.r << " " << gap.g << " " << gap.b;
+}
+
+TEST(CameraRender, SameSceneSameBytesAndTheWeatherChangesThem) {
+  RoadMap none;
+  CameraRenderer renderer(none, config());
+  CameraScene scene;
+  scene.ego = Pose2{{0, 0}, 0.3};
+  scene.vehicles.push_back(red_car({14, 4}));
+  scene.lights.push_back({{20, 6}, M_PI, 'g'});
+  const Frame a = render(renderer, scene);
+  EXPECT_EQ(a.bytes(), render(renderer, scene).bytes());
+  CameraConfig rain = config();
+  rain.weather = "hard-rain-noon";
+  CameraRenderer wet(none, rain);
+  const Frame b = render(wet, scene);
+  EXPECT_NE(a.bytes(), b.bytes());
+  EXPECT_EQ(b.bytes(), render(wet, scene).bytes());
+}
+
+TEST(CameraWeathers, FourTrainTwoHeldOutAndUnknownNamesAreOneLine) {
+  int held = 0;
+  for (const CameraWeather& w : camera_weathers()) held += w.held_out;
+  EXPECT_EQ(camera_weathers().size(), 6u);
+  EXPECT_EQ(held, 2);
+  try {
+    camera_weather("foggy-moon");
+    FAIL() << "an unknown weather was accepted";
+  } catch (const ConfigError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("foggy-moon"), std::string::npos) << what;
+    EXPECT_NE(what.find("clear-noon"), std::string::npos) << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+  }
+  RoadMap none;
+  CameraConfig bad = config();
+  bad.hfov_deg = 200;
+  EXPECT_THROW(CameraRenderer(none, bad), ConfigError);
+  bad = config();
+  bad.width = 4;
+  EXPECT_THROW(check_camera_config(bad), ConfigError);
+  bad = config();
+  bad.weather = "nope";
+  EXPECT_THROW(check_camera_config(bad), ConfigError);
+}
+
+}  // namespace
+}  // namespace cd
