@@ -63,6 +63,14 @@ void visit_settings(S& st, V&& v) {
   v.number("bev", "marking_width", st.bev.marking_width, 0.01, 2);
   v.integer("bev", "static_supersample", st.bev.static_supersample, 1, 8);
 
+  v.integer("sense.camera", "width", st.camera.width, 8, 4096);
+  v.integer("sense.camera", "height", st.camera.height, 8, 4096);
+  v.number("sense.camera", "mount_height", st.camera.mount_height, 0.1, 10);
+  v.number("sense.camera", "mount_forward", st.camera.mount_forward, -10, 10);
+  v.number("sense.camera", "pitch_deg", st.camera.pitch_deg, -45, 60);
+  v.number("sense.camera", "hfov_deg", st.camera.hfov_deg, 10, 170);
+  v.text("sense.camera", "weather", st.camera.weather, camera_weather_names());
+
   v.number("expert", "cruise_speed", st.expert.cruise_speed, 0.5, 40);
   v.number("expert", "turn_speed", st.expert.turn_speed, 0.5, 40);
   v.number("expert", "comfort_decel", st.expert.comfort_decel, 0.5, 10);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <memory>
 
 #include <nlohmann/json.hpp>
 
@@ -16,6 +17,7 @@
 #include "core/rng.hpp"
 #include "inference/policy_runner.hpp"
 #include "methods/method.hpp"
+#include "sense/camera.hpp"
 #include "world/world.hpp"
 
 namespace cd {
@@ -27,12 +29,24 @@ using Clock = std::chrono::steady_clock;
 // Steps/s of bare SUMO (the ego driven by SUMO itself) and of the full loop (ego model,
 // expert, BEV, checks, recording to memory), interleaved over `slices` tasks: each slice
 // runs steps/slices steps of bare SUMO, then as many of the full loop, on the same task.
-void bench_world(const Settings& s, long steps, int slices, bool json) {
+void bench_world(const Settings& s, long steps, int slices, bool json, const std::string& view) {
+  if (view != "bev" && view != "camera")
+    throw ConfigError("bench world: --view must be bev or camera, not '" + view + "'");
   World world(s);
   ExpertRecorder recorder(world, s);
   const long per_slice = std::max<long>(1, steps / slices);
   Interleaved m;
   EpisodeData data;
+  // The camera's parts, timed apart from the loop (view "camera").
+  std::unique_ptr<CameraRenderer> camera;
+  if (view == "camera") camera = std::make_unique<CameraRenderer>(world.map(), s.camera);
+  std::vector<uint8_t> camera_frame(camera ? camera->frame_bytes() : 0),
+      bev_frame(world.renderer().config().height * world.renderer().config().width);
+  double scene_s = 0, camera_s = 0, bev_s = 0;
+  long camera_steps = 0;
+  auto seconds_since = [](Clock::time_point t) {
+    return std::chrono::duration<double>(Clock::now() - t).count();
+  };
   for (int k = 0; k < slices; ++k) {
     Task task = world.sample_task(episode_seed(s.collect.seed, k), s.collect.min_route_m,
                                   s.collect.max_route_m);
@@ -53,20 +67,43 @@ void bench_world(const Settings& s, long steps, int slices, bool json) {
       recorder.begin(data);
       data.bev_packed.reserve(data.frame_pixels() * static_cast<size_t>(per_slice - done));
       StepResult r;
+      double apart = 0;  // the camera's parts, not the loop's
       for (; done < per_slice && r.outcome == Outcome::Running; ++done) {
         Control c = recorder.record_step(data);
+        if (camera) {
+          const auto t2 = Clock::now();
+          const CameraScene scene = world.camera_scene();
+          const auto t3 = Clock::now();
+          camera->render(scene, camera_frame.data());
+          const auto t4 = Clock::now();
+          world.render_packed(bev_frame.data());
+          const double sc = std::chrono::duration<double>(t3 - t2).count(),
+                       cam = std::chrono::duration<double>(t4 - t3).count(), bev = seconds_since(t4);
+          scene_s += sc, camera_s += cam, bev_s += bev, apart += sc + cam + bev;
+          ++camera_steps;
+        }
         r = world.step(c);
       }
-      full += std::chrono::duration<double>(Clock::now() - t1).count();
+      full += seconds_since(t1) - apart;
       if (r.outcome != Outcome::Running && done < per_slice) world.reset(task);
     }
     m.add(per_slice, bare, per_slice, full);
   }
   const double sumo_rate = m.steps_a / m.seconds_a, full_rate = m.steps_b / m.seconds_b;
+  // Microseconds per step of the camera's parts and of the BEV, and the camera loop's rate.
+  const double per = camera_steps > 0 ? 1e6 / static_cast<double>(camera_steps) : 0;
+  const double scene_us = scene_s * per, camera_us = camera_s * per, bev_us = bev_s * per;
+  const double camera_rate = 1e6 / (1e6 / full_rate - bev_us + scene_us + camera_us);
   if (json) {
     nlohmann::json j = {{"sumo_steps_per_s", sumo_rate},
                         {"full_steps_per_s", full_rate},
                         {"ratio", m.median()}};
+    if (camera)
+      j["camera"] = {{"width", s.camera.width},          {"height", s.camera.height},
+                     {"weather", s.camera.weather},      {"bev_us", bev_us},
+                     {"scene_us", scene_us},             {"render_us", camera_us},
+                     {"loop_steps_per_s", camera_rate},
+                     {"ratio_to_bev_loop", camera_rate / full_rate}};
     j.update(m.spread_json());
     j["build"] = build_components();
     std::printf("%s\n", j.dump().c_str());
@@ -76,6 +113,13 @@ void bench_world(const Settings& s, long steps, int slices, bool json) {
     std::printf("  bare SUMO   %10.0f steps/s\n", sumo_rate);
     std::printf("  full loop   %10.0f steps/s\n", full_rate);
     m.print_spread();
+    if (camera) {
+      std::printf("  camera %dx%d (%s): scene %.0f us, render %.0f us per step; BEV %.0f us\n",
+                  s.camera.width, s.camera.height, s.camera.weather.c_str(), scene_us, camera_us,
+                  bev_us);
+      std::printf("  camera loop %10.0f steps/s, %.2f of the BEV loop's\n", camera_rate,
+                  camera_rate / full_rate);
+    }
   }
 }
 

@@ -8,8 +8,13 @@
 
 namespace cd {
 
-// Bare SUMO stepping against the full loop (ego model, expert, BEV, checks, recording).
-void bench_world(const Settings& s, long steps, int slices, bool json);
+// Bare SUMO stepping against the full loop (ego model, expert, BEV, checks, recording). With
+// view "camera", each step of the full loop also builds the front camera's scene and renders it
+// (s.camera), and renders the BEV once more, each timed on its own and left out of the loop's
+// time: the camera loop's steps/s is then the loop's with the BEV's time replaced by the
+// camera's (its scene and its render), the parts all measured in this run.
+void bench_world(const Settings& s, long steps, int slices, bool json,
+                 const std::string& view = "bev");
 
 // An agent's closed-loop steps/s against the expert's on the first tasks of a suite; with
 // `profile`, the microseconds per step of each phase of the loop (LoopStats).

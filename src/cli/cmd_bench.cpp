@@ -30,7 +30,12 @@ void add_bench(CLI::App& app) {
                     "tasks the steps are split over; the loops alternate slice by slice")
       ->check(CLI::PositiveNumber);
   world->add_flag("--json", *json, "print one JSON object");
-  world->callback([=] { bench_world(settings_from(*config), *steps, *slices, *json); });
+  auto view = std::make_shared<std::string>("bev");
+  world->add_option("--view", *view,
+                    "bev, or camera: also time the front camera's scene and render ([sense.camera]) "
+                    "against the BEV's render, and give the camera loop's steps/s")
+      ->check(CLI::IsMember({"bev", "camera"}));
+  world->callback([=] { bench_world(settings_from(*config), *steps, *slices, *json, *view); });
 
   auto agent = std::make_shared<std::string>();
   auto checkpoint = std::make_shared<std::string>();

@@ -6,6 +6,7 @@
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "core/png.hpp"
 #include "world/town.hpp"
 #include "world/world.hpp"
 
@@ -45,6 +46,36 @@ void write_preview(const Settings& settings, const std::string& png) {
   std::printf("preview of %d places -> %s\n", tiles, png.c_str());
 }
 
+// The front camera ([sense.camera]) at the same places as the BEV preview, stacked into one
+// picture: the town's roads and its signal heads (all red), no traffic.
+void write_camera_preview(const Settings& settings, const std::string& png) {
+  World world(settings);
+  const RoadMap& map = world.map();
+  std::vector<const LaneGeom*> lanes;
+  for (const LaneGeom& g : map.lanes)
+    if (g.kind == LaneKind::Driving && !g.internal && g.length > 10) lanes.push_back(&g);
+  if (lanes.empty()) throw SimError(world.network_path() + ": no driving lane to preview");
+  const int tiles = std::min<int>(6, static_cast<int>(lanes.size()));
+  CameraRenderer camera(map, settings.camera);
+  const int H = settings.camera.height, W = settings.camera.width;
+  const size_t plane = static_cast<size_t>(H) * W;
+  std::vector<uint8_t> frame(camera.frame_bytes()), rgb(plane * 3 * tiles);
+  CameraScene scene;
+  for (const SignalHead& h : find_signal_heads(world.network()))
+    scene.lights.push_back({h.pole, h.facing, 'r'});
+  for (int t = 0; t < tiles; ++t) {
+    const LaneGeom& g = *lanes[static_cast<size_t>(t) * lanes.size() / tiles];
+    const size_t i = g.shape.size() / 2;
+    const Vec2 a = g.shape[i - 1], b = g.shape[i];
+    scene.ego = {(a + b) * 0.5, std::atan2(b.y - a.y, b.x - a.x)};
+    camera.render(scene, frame.data());
+    for (size_t p = 0; p < plane; ++p)  // planes -> interleaved rows, tile t below tile t-1
+      for (int c = 0; c < 3; ++c) rgb[(t * plane + p) * 3 + c] = frame[c * plane + p];
+  }
+  write_png_rgb(png, rgb, W, H * tiles);
+  std::printf("camera preview of %d places -> %s\n", tiles, png.c_str());
+}
+
 }  // namespace
 
 void add_town(CLI::App& app) {
@@ -58,6 +89,9 @@ void add_town(CLI::App& app) {
   sub->add_option("names", *names, "towns to generate (default: all)");
   sub->add_option("--net", *net, "a SUMO .net.xml to load instead of a built-in town");
   sub->add_option("--preview", *preview, "write a PNG of the BEV at a few places of the network");
+  auto camera_preview = std::make_shared<std::string>();
+  sub->add_option("--camera-preview", *camera_preview,
+                  "write a PNG of the front camera ([sense.camera]) at the same places");
   sub->add_option("--config,-c", *config, "TOML config for the BEV settings");
   sub->add_flag("--list", *list, "list the built-in towns");
   sub->callback([=] {
@@ -83,6 +117,12 @@ void add_town(CLI::App& app) {
         throw ConfigError("town --preview needs exactly one town name or --net FILE");
       s.world.town = targets.front();
       write_preview(s, *preview);
+    }
+    if (!camera_preview->empty()) {
+      if (targets.size() != 1)
+        throw ConfigError("town --camera-preview needs exactly one town name or --net FILE");
+      s.world.town = targets.front();
+      write_camera_preview(s, *camera_preview);
     }
   });
 }

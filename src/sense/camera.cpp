@@ -29,6 +29,12 @@ const std::vector<CameraWeather>& camera_weathers() {
   return weathers;
 }
 
+std::vector<std::string> camera_weather_names() {
+  std::vector<std::string> names;
+  for (const CameraWeather& w : camera_weathers()) names.push_back(w.name);
+  return names;
+}
+
 const CameraWeather& camera_weather(const std::string& name) {
   std::string known;
   for (const CameraWeather& w : camera_weathers()) {

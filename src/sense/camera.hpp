@@ -39,6 +39,7 @@ struct CameraWeather {
 const std::vector<CameraWeather>& camera_weathers();
 // Throws ConfigError naming the known sets.
 const CameraWeather& camera_weather(const std::string& name);
+std::vector<std::string> camera_weather_names();
 
 struct CameraConfig {
   int width = 288;   // seed 001's 288 x 80; CILRS's crop is 200 x 88
@@ -131,7 +132,15 @@ class CameraRenderer {
   CameraConfig cfg_;
   const CameraWeather* weather_;
   std::unique_ptr<GlContext> gl_;
-  unsigned static_list_ = 0;  // the display list of the static layers
+  // The static layers: the ground's display list, and per layer (sidewalks, roads, markings,
+  // kerbs; drawn in that order) one display list per square cell of the map with what lies in
+  // it, drawn when the cell's bounds can be in view (sense/camera_renderer.cpp).
+  unsigned ground_list_ = 0;
+  struct Cell {
+    unsigned list = 0;
+    Vec2 lo, hi;  // the bounds of its quads
+  };
+  std::vector<std::vector<Cell>> layers_;
 };
 
 }  // namespace cd

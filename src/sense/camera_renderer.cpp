@@ -4,7 +4,11 @@
 // face) and lamps and brake lights are unlit colours, so GL's lighting state plays no part.
 #include <GL/gl.h>
 
+#include <algorithm>
 #include <cmath>
+#include <map>
+#include <utility>
+#include <vector>
 
 #include "render/gl_context.hpp"
 #include "sense/camera.hpp"
@@ -27,41 +31,76 @@ void set_colour(Rgb c, double shade = 1.0) {
 }
 
 constexpr double kMarkingWidth = 0.15, kKerbWidth = 0.25, kDash = 3.0, kGap = 3.0;
-constexpr double kDashPiece = 0.5;  // dashed lines are drawn in pieces this long (m)
 
-// A flat band along `pts` between the offsets `left` and `right` (metres to the left; right <
-// left), on the ground.
-void band(const Polyline& pts, double left, double right) {
-  if (pts.size() < 2) return;
-  const Polyline l = offset_polyline(pts, left), r = offset_polyline(pts, right);
-  glBegin(GL_QUAD_STRIP);
-  for (size_t i = 0; i < pts.size(); ++i) {
-    glVertex3d(l[i].x, l[i].y, 0.0);
-    glVertex3d(r[i].x, r[i].y, 0.0);
+// The quads of one flat layer, grouped by the map cell their centre lies in (kCell m squares).
+constexpr double kCell = 80.0;
+// Static layers farther than these from the camera are not drawn: the surfaces beyond 300 m (a
+// 3.2 m lane there is about 1.5 pixels wide at the default 288 px and 90 degrees), what is
+// painted and the kerbs beyond 80 m (a 0.15 m line there covers a fifth of a pixel's width).
+constexpr double kSurfaceDrawDistance = 300.0, kPaintDrawDistance = 80.0;
+
+struct FlatLayer {
+  std::map<std::pair<long, long>, std::vector<Vec2>> cells;  // 4 corners per quad
+
+  void quad(Vec2 a, Vec2 b, Vec2 c, Vec2 d) {
+    const Vec2 m = (a + b + c + d) * 0.25;
+    auto& q = cells[{static_cast<long>(std::floor(m.x / kCell)),
+                     static_cast<long>(std::floor(m.y / kCell))}];
+    q.insert(q.end(), {a, b, c, d});
   }
-  glEnd();
-}
 
-// The dashed version of a band `width` wide centred on `pts`, in the dash pattern of the
-// bird's-eye view (dash_painted along each segment's direction).
-void dashed_band(const Polyline& pts, double width, double dash, double gap) {
-  glBegin(GL_QUADS);
-  for (size_t i = 1; i < pts.size(); ++i) {
-    const Vec2 a = pts[i - 1], ab = pts[i] - a;
-    const double len = ab.norm();
-    if (len <= 0) continue;
-    const Vec2 d = ab * (1.0 / len), n = Vec2{-d.y, d.x} * (0.5 * width);
-    for (double s0 = 0; s0 < len; s0 += kDashPiece) {
-      const double s1 = std::min(len, s0 + kDashPiece);
-      if (!dash_painted((a + d * (0.5 * (s0 + s1))).dot(d), dash, dash + gap)) continue;
-      const Vec2 p0 = a + d * s0, p1 = a + d * s1;
-      glVertex3d(p0.x + n.x, p0.y + n.y, 0.0);
-      glVertex3d(p1.x + n.x, p1.y + n.y, 0.0);
-      glVertex3d(p1.x - n.x, p1.y - n.y, 0.0);
-      glVertex3d(p0.x - n.x, p0.y - n.y, 0.0);
+  // A band along `pts` between the offsets `left` and `right` (metres to the left; right <
+  // left): one quad per segment.
+  void band(const Polyline& pts, double left, double right) {
+    if (pts.size() < 2) return;
+    const Polyline l = offset_polyline(pts, left), r = offset_polyline(pts, right);
+    for (size_t i = 1; i < pts.size(); ++i) quad(l[i - 1], l[i], r[i], r[i - 1]);
+  }
+
+  // The dashed version of a band `width` wide centred on `pts`, in the dash pattern of the
+  // bird's-eye view: along a segment of direction d from a, the painted stretches are where
+  // dash_painted((a + d s) . d) holds, i.e. (a . d) + s within dash/2 of a multiple of the
+  // period; one quad per stretch.
+  void dashed(const Polyline& pts, double width, double dash, double gap) {
+    const double period = dash + gap;
+    for (size_t i = 1; i < pts.size(); ++i) {
+      const Vec2 a = pts[i - 1], ab = pts[i] - a;
+      const double len = ab.norm();
+      if (len <= 0) continue;
+      const Vec2 d = ab * (1.0 / len), n = Vec2{-d.y, d.x} * (0.5 * width);
+      const double o = a.dot(d);
+      for (double k = std::floor((o - 0.5 * dash) / period); k * period - 0.5 * dash < o + len;
+           k += 1) {
+        const double s0 = std::max(0.0, k * period - 0.5 * dash - o);
+        const double s1 = std::min(len, k * period + 0.5 * dash - o);
+        if (s1 <= s0) continue;
+        const Vec2 p0 = a + d * s0, p1 = a + d * s1;
+        quad(p0 + n, p1 + n, p1 - n, p0 - n);
+      }
     }
   }
-  glEnd();
+};
+
+// Whether bounds can be in view: not wholly behind the camera, nor wholly outside either side
+// of its horizontal field of view (with a margin), nor farther than `reach`. Conservative: bounds
+// that pass may still be out of view.
+bool in_view(const CameraFrame& f, double half_fov, Vec2 lo, Vec2 hi, double reach) {
+  const Vec2 at{f.position.x, f.position.y};
+  const Vec2 fwd = Vec2{f.forward.x, f.forward.y} * (1.0 / std::hypot(f.forward.x, f.forward.y));
+  const Vec2 left{-fwd.y, fwd.x};
+  const double c = std::cos(half_fov), s = std::sin(half_fov);
+  // The wedge's edges' outward normals: beyond the left edge, beyond the right edge.
+  const Vec2 out_left = left * c - fwd * s, out_right = left * (-c) - fwd * s;
+  bool behind = true, past_left = true, past_right = true;
+  for (const Vec2& corner : {lo, Vec2{hi.x, lo.y}, hi, Vec2{lo.x, hi.y}}) {
+    const Vec2 d = corner - at;
+    behind = behind && d.dot(fwd) < 0;
+    past_left = past_left && d.dot(out_left) > 0;
+    past_right = past_right && d.dot(out_right) > 0;
+  }
+  const double dx = std::max({lo.x - at.x, 0.0, at.x - hi.x});
+  const double dy = std::max({lo.y - at.y, 0.0, at.y - hi.y});
+  return !behind && !past_left && !past_right && std::hypot(dx, dy) <= reach;
 }
 
 Vec3 sun_direction(const CameraWeather& w) {
@@ -78,7 +117,6 @@ void solid_box(Vec2 c, double heading, double length, double width, double z0, d
   const Vec2 hu = u * (0.5 * length), hv = v * (0.5 * width);
   const Vec2 corner[4] = {c + hu + hv, c - hu + hv, c - hu - hv, c + hu - hv};
   auto shade = [&](Vec3 n) { return w.ambient + (1 - w.ambient) * std::max(0.0, dot(n, sun)); };
-  glBegin(GL_QUADS);
   set_colour(colour, shade({0, 0, 1}));
   for (const Vec2& p : corner) glVertex3d(p.x, p.y, z1);
   // Side k runs from corner k to corner k+1; its outward normal.
@@ -91,20 +129,17 @@ void solid_box(Vec2 c, double heading, double length, double width, double z0, d
     glVertex3d(b.x, b.y, z1);
     glVertex3d(a.x, a.y, z1);
   }
-  glEnd();
 }
 
 // An unlit upright square facing `facing` (its normal), centred at (c, z), `across` wide and
-// `tall` high.
+// `tall` high. Inside the caller's glBegin(GL_QUADS).
 void upright_quad(Vec2 c, double z, double facing, double across, double tall, Rgb colour) {
   const Vec2 side = Vec2{-std::sin(facing), std::cos(facing)} * (0.5 * across);
   set_colour(colour);
-  glBegin(GL_QUADS);
   glVertex3d(c.x - side.x, c.y - side.y, z - 0.5 * tall);
   glVertex3d(c.x + side.x, c.y + side.y, z - 0.5 * tall);
   glVertex3d(c.x + side.x, c.y + side.y, z + 0.5 * tall);
   glVertex3d(c.x - side.x, c.y - side.y, z + 0.5 * tall);
-  glEnd();
 }
 
 const Rgb kLampOn[3] = {{1.0f, 0.05f, 0.02f}, {1.0f, 0.78f, 0.0f}, {0.1f, 1.0f, 0.25f}};
@@ -124,17 +159,19 @@ CameraRenderer::CameraRenderer(const RoadMap& map, CameraConfig cfg)
 
 CameraRenderer::~CameraRenderer() {
   gl_->make_current();
-  if (static_list_ != 0) glDeleteLists(static_list_, 1);
+  if (ground_list_ != 0) glDeleteLists(ground_list_, 1);
+  for (const auto& layer : layers_)
+    for (const Cell& cell : layer) glDeleteLists(cell.list, 1);
 }
 
 void CameraRenderer::build_static(const RoadMap& map) {
   const CameraWeather& w = *weather_;
-  static_list_ = glGenLists(1);
-  glNewList(static_list_, GL_COMPILE);
   // The ground, far beyond the map's lanes.
   Vec2 lo = map.min, hi = map.max;
   if (lo.x > hi.x || lo.y > hi.y) lo = hi = Vec2{};
   const double m = 2.0 * cfg_.far_m;
+  ground_list_ = glGenLists(1);
+  glNewList(ground_list_, GL_COMPILE);
   set_colour(rgb(w.ground));
   glBegin(GL_QUADS);
   glVertex3d(lo.x - m, lo.y - m, 0.0);
@@ -142,39 +179,61 @@ void CameraRenderer::build_static(const RoadMap& map) {
   glVertex3d(hi.x + m, hi.y + m, 0.0);
   glVertex3d(lo.x - m, hi.y + m, 0.0);
   glEnd();
-  // Sidewalks and walking areas, then the roads over them, then what is painted on the roads.
-  set_colour(rgb(w.sidewalk));
-  for (const LaneGeom& lane : map.lanes)
-    if (lane.kind == LaneKind::Sidewalk || lane.kind == LaneKind::WalkingArea)
-      band(without_repeats(lane.shape), lane.width / 2, -lane.width / 2);
-  set_colour(rgb(w.road));
-  for (const LaneGeom& lane : map.lanes)
-    if (lane.kind == LaneKind::Driving)
-      band(without_repeats(lane.shape), lane.width / 2, -lane.width / 2);
-  set_colour(rgb(w.marking));
+  glEndList();
+
+  // Sidewalks and walking areas, then the roads over them, then what is painted on the roads,
+  // then the kerbs.
+  FlatLayer sidewalks, roads, paint, kerbs;
   for (const LaneGeom& lane : map.lanes) {
     const Polyline pts = without_repeats(lane.shape);
     if (pts.size() < 2) continue;
-    if (lane.kind == LaneKind::Crossing) {  // zebra stripes across the crossing's length
-      dashed_band(pts, lane.width, 0.5, 0.5);
-      continue;
+    const double hw = lane.width / 2;
+    switch (lane.kind) {
+      case LaneKind::Sidewalk:
+        sidewalks.band(pts, hw, -hw);
+        for (double side : {1.0, -1.0})  // both edges, the kerb
+          kerbs.band(offset_polyline(pts, side * hw), 0.5 * kKerbWidth, -0.5 * kKerbWidth);
+        break;
+      case LaneKind::WalkingArea:
+        sidewalks.band(pts, hw, -hw);
+        break;
+      case LaneKind::Crossing:  // zebra stripes across the crossing's length
+        paint.dashed(pts, lane.width, 0.5, 0.5);
+        break;
+      case LaneKind::Driving:
+        roads.band(pts, hw, -hw);
+        if (lane.internal) break;
+        // As the bird's-eye view: the left border dashed, the right border solid unless a
+        // neighbour lane draws it as its left border.
+        paint.dashed(offset_polyline(pts, hw), kMarkingWidth, kDash, kGap);
+        if (!lane.has_right_neighbour)
+          paint.band(offset_polyline(pts, -hw), 0.5 * kMarkingWidth, -0.5 * kMarkingWidth);
+        break;
     }
-    if (lane.kind != LaneKind::Driving || lane.internal) continue;
-    // As the bird's-eye view: the left border dashed, the right border solid unless a
-    // neighbour lane draws it as its left border.
-    dashed_band(offset_polyline(pts, lane.width / 2), kMarkingWidth, kDash, kGap);
-    if (!lane.has_right_neighbour)
-      band(offset_polyline(pts, -lane.width / 2), 0.5 * kMarkingWidth, -0.5 * kMarkingWidth);
   }
-  set_colour(rgb(w.kerb));
-  for (const LaneGeom& lane : map.lanes)
-    if (lane.kind == LaneKind::Sidewalk) {
-      const Polyline pts = without_repeats(lane.shape);
-      if (pts.size() < 2) continue;
-      for (double side : {1.0, -1.0})
-        band(offset_polyline(pts, side * lane.width / 2), 0.5 * kKerbWidth, -0.5 * kKerbWidth);
+  // In this order (render() reads layers 0-1 as surfaces, 2-3 as paint).
+  const std::pair<const FlatLayer*, Rgb> order[] = {
+      {&sidewalks, rgb(w.sidewalk)}, {&roads, rgb(w.road)}, {&paint, rgb(w.marking)},
+      {&kerbs, rgb(w.kerb)}};
+  for (const auto& [layer, colour] : order) {
+    std::vector<Cell>& cells = layers_.emplace_back();
+    for (const auto& [key, corners] : layer->cells) {
+      Cell cell;
+      cell.lo = cell.hi = corners.front();
+      cell.list = glGenLists(1);
+      glNewList(cell.list, GL_COMPILE);
+      set_colour(colour);
+      glBegin(GL_QUADS);
+      for (const Vec2& p : corners) {
+        cell.lo = {std::min(cell.lo.x, p.x), std::min(cell.lo.y, p.y)};
+        cell.hi = {std::max(cell.hi.x, p.x), std::max(cell.hi.y, p.y)};
+        glVertex3d(p.x, p.y, 0.0);
+      }
+      glEnd();
+      glEndList();
+      cells.push_back(cell);
     }
-  glEndList();
+  }
 }
 
 void CameraRenderer::render(const CameraScene& scene, uint8_t* out) {
@@ -216,11 +275,23 @@ void CameraRenderer::render(const CameraScene& scene, uint8_t* out) {
 
   // The flat layers in painter's order, then the solids with depth.
   glDisable(GL_DEPTH_TEST);
-  glCallList(static_list_);
+  glCallList(ground_list_);
+  const double half_fov = 0.5 * cfg_.hfov_deg * M_PI / 180.0 + 0.1;
+  for (size_t k = 0; k < layers_.size(); ++k) {
+    const double reach = k < 2 ? kSurfaceDrawDistance : kPaintDrawDistance;
+    for (const Cell& cell : layers_[k])
+      if (in_view(f, half_fov, cell.lo, cell.hi, reach)) glCallList(cell.list);
+  }
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
+  // The solids in one batch, each left out when it cannot be in view.
+  auto visible = [&](Vec2 c, double r) {
+    return in_view(f, half_fov, c - Vec2{r, r}, c + Vec2{r, r}, cfg_.far_m);
+  };
+  glBegin(GL_QUADS);
   for (const CameraScene::Vehicle& v : scene.vehicles) {
     const Box& b = v.box;
+    if (!visible(b.center, 0.5 * (b.length + b.width))) continue;
     solid_box(b.center, b.heading, b.length, b.width, 0.0, v.height, from_hex(v.colour), w);
     // Brake lights on the rear face, just behind it.
     const Vec2 u{std::cos(b.heading), std::sin(b.heading)}, side{-u.y, u.x};
@@ -231,10 +302,12 @@ void CameraRenderer::render(const CameraScene& scene, uint8_t* out) {
                    v.braking ? kBrakeOn : kBrakeOff);
   }
   for (const CameraScene::Pedestrian& ped : scene.pedestrians)
-    solid_box(ped.box.center, ped.box.heading, ped.box.length, ped.box.width, 0.0, ped.height,
-              from_hex(ped.colour), w);
+    if (visible(ped.box.center, ped.box.length + ped.box.width))
+      solid_box(ped.box.center, ped.box.heading, ped.box.length, ped.box.width, 0.0, ped.height,
+                from_hex(ped.colour), w);
   const LightHeadGeometry& g = kLightHead;
   for (const CameraScene::Light& l : scene.lights) {
+    if (!visible(l.position, 1.0)) continue;
     solid_box(l.position, l.facing, 0.12, 0.12, 0.0, g.pole_height, kPole, w);
     solid_box(l.position, l.facing, g.head_depth, g.head_width, g.pole_height,
               g.pole_height + g.head_height, kHead, w);
@@ -245,6 +318,7 @@ void CameraRenderer::render(const CameraScene& scene, uint8_t* out) {
       upright_quad(face, g.lamp_centre_height(lamp), l.facing, g.lamp_size, g.lamp_size,
                    lamp == lit ? kLampOn[lamp] : kLampOff);
   }
+  glEnd();
   gl_->read_rgb_planes(out);
 }
 

@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <regex>
 #include <map>
+#include <regex>
 #include <set>
 #include <unordered_map>
 
@@ -31,6 +31,27 @@ constexpr double kLeaderLength = 5.0;  // m, SUMO's default vehicle type
 constexpr double kRedStartGap = 1.5;
 constexpr double kRedWaitAllowance = 60.0;  // s added to a red_light task's timeout   // m from the ego's front to the stop line (red_light)
 constexpr double kPedSize = 0.5;        // m, pedestrians are drawn and checked as squares
+
+// A road user's colour on the front camera, from its SUMO id (FNV-1a): one of a few car
+// paints, or of a few clothes colours.
+uint32_t actor_colour(const std::string& id, bool pedestrian) {
+  static const uint32_t cars[] = {0xb0b4b8, 0x202226, 0xe8e8e4, 0x8a1c1c, 0x1c3a6e,
+                                  0x2e5a3a, 0x6a6f75, 0xc9a227};
+  static const uint32_t clothes[] = {0x3050a0, 0xa03030, 0x303030, 0xd0c060, 0x40804a};
+  uint64_t h = 1469598103934665603ull;
+  for (unsigned char c : id) h = (h ^ c) * 1099511628211ull;
+  return pedestrian ? clothes[h % 5] : cars[h % 8];
+}
+
+// What a signal head shows for a SUMO link state: 'r', 'y', 'g', or 0 for a light that is off.
+char camera_lamp(char sumo_state) {
+  switch (sumo_state) {
+    case 'r': case 's': return 'r';
+    case 'y': case 'u': return 'y';
+    case 'G': case 'g': return 'g';
+    default: return 0;
+  }
+}
 constexpr double kPathHorizon = 80.0;   // m of route ahead that the checks look at
 constexpr double kTopUpPeriod = 1.0;    // s between background refills
 bool g_world_alive = false;             // libsumo holds one simulation per process
@@ -255,6 +276,7 @@ World::World(const WorldConfig& config)
     net_ = std::make_shared<const RoadNetwork>(read_road_network(net_path));
     renderer_ = std::make_unique<BevRenderer>(net_->map, config_.bev);
     grid_ = std::make_unique<LaneGrid>(net_->map);
+    signal_heads_ = find_signal_heads(*net_);
     free_ = config_.ego.lateral == "free";
   } catch (...) {
     libsumo::Simulation::close();
@@ -404,6 +426,7 @@ void World::reset(const Task& task) {
   counters_ = {};
   outcome_ = Outcome::Running;
   prev_link_state_ = 0;
+  actor_speed_.clear();
   prev_link_distance_ = 1e9;
   ego_present_ = false;
   leader_held_ = false;
@@ -801,8 +824,12 @@ void World::refresh() {
                              size->second.second);
     }
     a.speed = number(libsumo::VAR_SPEED);
+    auto prev = actor_speed_.find(id);
+    a.accel = prev == actor_speed_.end() ? 0.0 : (a.speed - prev->second) / config_.world.dt;
     actors_.push_back(std::move(a));
   }
+  actor_speed_.clear();
+  for (const Actor& a : actors_) actor_speed_[a.id] = a.speed;
   LaneChangeOptions changes;
   changes.clear = [this](const LaneGeom& to, double pos) { return lane_change_clear(to, pos); };
   path_ = trace_route_path(*net_, task_.route, plan_, ego_.lane, ego_.lane_pos, kPathHorizon,
@@ -885,6 +912,61 @@ BevScene World::scene() const {
                                                                : kBevLightRed;
       sc.stop_lines.push_back({line->first, line->second, ch});
     }
+  }
+  return sc;
+}
+
+std::vector<SignalHead> find_signal_heads(const RoadNetwork& net) {
+  std::map<std::string, std::vector<std::pair<std::string, const ViaInfo*>>> by_approach;
+  for (const auto& [via, info] : net.via_info)
+    if (!info.tls.empty()) by_approach[info.approach].emplace_back(via, &info);
+  std::vector<SignalHead> heads;
+  for (auto& [approach, vias] : by_approach) {
+    const LaneGeom* lane = net.map.find(approach);
+    if (!lane) continue;
+    const Polyline pts = without_repeats(lane->shape);
+    if (pts.size() < 2) continue;
+    std::sort(vias.begin(), vias.end());
+    const ViaInfo* shown = vias.front().second;
+    for (const auto& [via, info] : vias)
+      if (info->direction == 's') {
+        shown = info;
+        break;
+      }
+    const Vec2 end = pts.back(), d = end - pts[pts.size() - 2];
+    const Vec2 dir = d * (1.0 / d.norm()), right{dir.y, -dir.x};
+    heads.push_back({approach, end + right * (0.5 * lane->width + 0.6),
+                     std::atan2(-dir.y, -dir.x), shown});
+  }
+  return heads;
+}
+
+CameraScene World::camera_scene(double radius) {
+  CameraScene sc;
+  sc.ego = ego_.pose;
+  for (const Actor& a : actors_) {
+    if (a.pedestrian) {
+      CameraScene::Pedestrian p;
+      p.box = a.box;
+      p.colour = actor_colour(a.id, true);
+      sc.pedestrians.push_back(p);
+    } else {
+      CameraScene::Vehicle v;
+      v.box = a.box;
+      v.colour = actor_colour(a.id, false);
+      v.braking = a.accel < -1.0;
+      sc.vehicles.push_back(v);
+    }
+  }
+  const double r2 = radius * radius;
+  for (const SignalHead& h : signal_heads_) {
+    const Vec2 d = h.pole - ego_.pose.pos;
+    if (d.dot(d) > r2) continue;
+    char state = link_state(*h.via);
+    if (h.approach == ego_.lane && truth_.tl_state != kTlNone)
+      state = truth_.tl_state == kTlRed ? 'r' : truth_.tl_state == kTlYellow ? 'y' : 'G';
+    const char head = camera_lamp(state);
+    if (head != 0) sc.lights.push_back({h.pole, h.facing, head});
   }
   return sc;
 }

@@ -7,10 +7,12 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "core/geometry.hpp"
 #include "sense/bev.hpp"
+#include "sense/camera.hpp"
 #include "world/ego_model.hpp"
 #include "world/ground_truth.hpp"
 #include "world/lane_contact.hpp"
@@ -83,6 +85,18 @@ struct WorldCounters {
   long lateral_samples = 0;
 };
 
+// The front camera's signal head of a signalised approach lane: its pole (0.6 m right of the
+// lane's end), the way its lamps face (against the lane's direction), and the connection whose
+// state it shows (the straight one where there is one, else the first by id).
+struct SignalHead {
+  std::string approach;
+  Vec2 pole;
+  double facing = 0;
+  const ViaInfo* via = nullptr;
+};
+// Every signalised approach lane's head, sorted by lane id.
+std::vector<SignalHead> find_signal_heads(const RoadNetwork& net);
+
 class World {
  public:
   // Starts SUMO on the configured network and reads its RoadNetwork.
@@ -115,6 +129,11 @@ class World {
   void render(uint8_t* out) const;         // the BEV of the current state, C*H*W bytes
   void render_packed(uint8_t* out) const;  // the same as H*W bytes of channel bits
   BevScene scene() const;
+  // What the front camera sees now (sense/camera.hpp): the road users in view with their
+  // colours and brake lights (a car decelerating at over 1 m/s^2), and a signal head at every
+  // signalised stop line within `radius` m of the ego, showing its straight link's state (the
+  // ego's own approach: the ego's next link, what the BEV shows).
+  CameraScene camera_scene(double radius = 150.0);
 
   const EgoState& ego() const { return ego_; }
   const GroundTruth& truth() const { return truth_; }
@@ -205,6 +224,8 @@ class World {
   int command_ = kFollow;
   WorldCounters counters_;
   std::vector<Actor> actors_;
+  std::unordered_map<std::string, double> actor_speed_;  // last step's speeds (Actor::accel)
+  std::vector<SignalHead> signal_heads_;
   RoutePath path_;
   std::vector<std::string> route_lanes_;
   char prev_link_state_ = 0;

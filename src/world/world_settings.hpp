@@ -3,6 +3,7 @@
 #include <string>
 
 #include "sense/bev.hpp"
+#include "sense/camera.hpp"
 
 namespace cd {
 
@@ -66,12 +67,13 @@ inline TrafficDensity traffic_density(const WorldSettings& w) {
   return {};
 }
 
-// What a World is built from: the [world], [ego] and [bev] tables (app/settings.hpp's Settings
-// holds them as its base).
+// What a World is built from: the [world], [ego], [bev] and [sense.camera] tables
+// (app/settings.hpp's Settings holds them as its base).
 struct WorldConfig {
   WorldSettings world;
   EgoSettings ego;
   BevConfig bev;
+  CameraConfig camera;  // the front camera (sense/camera.hpp)
 };
 
 }  // namespace cd
