@@ -29,8 +29,8 @@ struct Actor {
   std::string id;
   Box box;
   double speed = 0;
-  double accel = 0;  // m/s^2 over the last step (0 in its first step in view)
   bool pedestrian = false;
+  double accel = 0;  // m/s^2 over the last step (0 in its first step in view)
 };
 
 struct GroundTruth {

@@ -28,6 +28,7 @@ void World::render(uint8_t*) const { no_world(); }
 void World::render_packed(uint8_t*) const { no_world(); }
 BevScene World::scene() const { no_world(); }
 CameraScene World::camera_scene(double) { no_world(); }
+std::vector<SignalHead> find_signal_heads(const RoadNetwork&) { no_world(); }
 std::string World::add_scripted_vehicle(const std::string&, double, double) { no_world(); }
 void World::set_vehicle_speed(const std::string&, double) { no_world(); }
 std::string World::add_scripted_pedestrian(const std::string&, double) { no_world(); }
