@@ -14,27 +14,37 @@ namespace cd::cli {
 
 namespace {
 
-// BEV frames at a few driving lanes spread over the network, tiled into one picture.
-void write_preview(const Settings& settings, const std::string& png) {
-  World world(settings);
-  const RoadMap& map = world.map();
+// The places a preview shows: up to six driving lanes spread over the network, at the midpoint
+// of each one's middle segment, heading along it.
+std::vector<Pose2> preview_places(const World& world) {
   std::vector<const LaneGeom*> lanes;
-  for (const LaneGeom& g : map.lanes)
+  for (const LaneGeom& g : world.map().lanes)
     if (g.kind == LaneKind::Driving && !g.internal && g.length > 10) lanes.push_back(&g);
   if (lanes.empty()) throw SimError(world.network_path() + ": no driving lane to preview");
   const int tiles = std::min<int>(6, static_cast<int>(lanes.size()));
+  std::vector<Pose2> places;
+  for (int t = 0; t < tiles; ++t) {
+    const LaneGeom& g = *lanes[static_cast<size_t>(t) * lanes.size() / tiles];
+    const size_t i = g.shape.size() / 2;
+    const Vec2 a = g.shape[i - 1], b = g.shape[i];
+    places.push_back({(a + b) * 0.5, std::atan2(b.y - a.y, b.x - a.x)});
+  }
+  return places;
+}
+
+// BEV frames at the preview's places, tiled into one picture.
+void write_preview(const Settings& settings, const std::string& png) {
+  World world(settings);
+  const std::vector<Pose2> places = preview_places(world);
+  const int tiles = static_cast<int>(places.size());
   const int cols = std::min(3, tiles), rows = (tiles + cols - 1) / cols;
   const BevConfig& bc = world.renderer().config();
   const int C = kBevChannelCount, H = bc.height, W = bc.width;
   std::vector<uint8_t> frame(world.renderer().frame_bytes());
   std::vector<uint8_t> grid(static_cast<size_t>(C) * rows * H * cols * W, 0);
   for (int t = 0; t < tiles; ++t) {
-    const LaneGeom& g = *lanes[static_cast<size_t>(t) * lanes.size() / tiles];
-    // Midpoint of the lane's middle segment, heading along it.
-    size_t i = g.shape.size() / 2;
-    Vec2 a = g.shape[i - 1], b = g.shape[i];
     BevScene scene;
-    scene.ego = {(a + b) * 0.5, std::atan2(b.y - a.y, b.x - a.x)};
+    scene.ego = places[static_cast<size_t>(t)];
     world.renderer().render(scene, frame.data());
     int r0 = (t / cols) * H, c0 = (t % cols) * W;
     for (int c = 0; c < C; ++c)
@@ -50,13 +60,9 @@ void write_preview(const Settings& settings, const std::string& png) {
 // picture: the town's roads and its signal heads (all red), no traffic.
 void write_camera_preview(const Settings& settings, const std::string& png) {
   World world(settings);
-  const RoadMap& map = world.map();
-  std::vector<const LaneGeom*> lanes;
-  for (const LaneGeom& g : map.lanes)
-    if (g.kind == LaneKind::Driving && !g.internal && g.length > 10) lanes.push_back(&g);
-  if (lanes.empty()) throw SimError(world.network_path() + ": no driving lane to preview");
-  const int tiles = std::min<int>(6, static_cast<int>(lanes.size()));
-  CameraRenderer camera(map, settings.camera);
+  const std::vector<Pose2> places = preview_places(world);
+  const int tiles = static_cast<int>(places.size());
+  CameraRenderer camera(world.map(), settings.camera);
   const int H = settings.camera.height, W = settings.camera.width;
   const size_t plane = static_cast<size_t>(H) * W;
   std::vector<uint8_t> frame(camera.frame_bytes()), rgb(plane * 3 * tiles);
@@ -64,10 +70,7 @@ void write_camera_preview(const Settings& settings, const std::string& png) {
   for (const SignalHead& h : find_signal_heads(world.network()))
     scene.lights.push_back({h.pole, h.facing, 'r'});
   for (int t = 0; t < tiles; ++t) {
-    const LaneGeom& g = *lanes[static_cast<size_t>(t) * lanes.size() / tiles];
-    const size_t i = g.shape.size() / 2;
-    const Vec2 a = g.shape[i - 1], b = g.shape[i];
-    scene.ego = {(a + b) * 0.5, std::atan2(b.y - a.y, b.x - a.x)};
+    scene.ego = places[static_cast<size_t>(t)];
     camera.render(scene, frame.data());
     for (size_t p = 0; p < plane; ++p)  // planes -> interleaved rows, tile t below tile t-1
       for (int c = 0; c < 3; ++c) rgb[(t * plane + p) * 3 + c] = frame[c * plane + p];

@@ -54,6 +54,14 @@ CameraScene::Vehicle red_car(Vec2 centre) {
   return v;
 }
 
+// An ego at the origin heading east, a red car 12 m ahead of its centre.
+CameraScene car_ahead() {
+  CameraScene scene;
+  scene.ego = Pose2{{0, 0}, 0.0};
+  scene.vehicles.push_back(red_car({12, 0}));
+  return scene;
+}
+
 TEST(CameraGeometry, ProjectsAsComputedByHand) {
   const CameraConfig c = config();
   const Pose2 east{{10, 20}, 0.0};
@@ -94,10 +102,8 @@ TEST(CameraGeometry, ProjectsAsComputedByHand) {
 TEST(CameraRender, ABoxLandsOnThePixelsItsProjectionGives) {
   RoadMap none;
   CameraRenderer renderer(none, config());
-  const Pose2 ego{{0, 0}, 0.0};
-  CameraScene scene;
-  scene.ego = ego;
-  scene.vehicles.push_back(red_car({12, 0}));
+  const CameraScene scene = car_ahead();
+  const Pose2 ego = scene.ego;
   const Frame f = render(renderer, scene);
   // The box's silhouette from behind is the bounding box of its corners' projections.
   double r0 = 1e9, r1 = -1e9, c0 = 1e9, c1 = -1e9;
@@ -205,10 +211,8 @@ TEST(CameraRender, TheLitLampFollowsTheLightAndIsAFewPixelsAt30m) {
 TEST(CameraRender, BrakeLightsLightWhenTheLeaderBrakes) {
   RoadMap none;
   CameraRenderer renderer(none, config());
-  const Pose2 ego{{0, 0}, 0.0};
-  CameraScene scene;
-  scene.ego = ego;
-  scene.vehicles.push_back(red_car({12, 0}));
+  CameraScene scene = car_ahead();
+  const Pose2 ego = scene.ego;
   scene.vehicles[0].colour = 0x2040c0;  // a blue car, so the lamp's red stands out
   // The left lamp's centre: 0.02 m behind the rear face, 0.75 m left, 0.85 m up.
   const auto p = *camera_project(renderer.config(), ego, {12 - 2.02, 0.75}, 0.85);
