@@ -169,12 +169,10 @@ def unpack_debs(env):
     return env
 
 
-def main():
-    data = sys.argv[1] if len(sys.argv) > 1 else next(
-        (d for d in (os.path.join(ROOT, ".gpu/data"), os.path.join(ROOT, "runs/quickstart/data"))
-         if os.path.isdir(d)), None)
-    torch_prefix = environment()
-    env = unpack_debs(dict(os.environ))
+def build(env, torch_prefix, targets):
+    """Configures and builds TARGETS against the machine's PyTorch (SUMO where its CMake config is
+    installed, MuJoCo and the Python module off); returns the causaldrive binary, or finishes the
+    report with exit 1 when either step fails."""
     sumo = os.environ.get("SUMO", "auto")
     if sumo == "auto":
         sumo = "ON" if os.path.isdir("/usr/share/sumo/cmake") else "OFF"
@@ -187,12 +185,20 @@ def main():
                               "-DCMAKE_PREFIX_PATH=" + ";".join(prefixes)], env=env)
     if rc != 0:
         finish(1)
-    rc, _ = run("build", ["cmake", "--build", BUILD, "-j", str(JOBS), "--target", "causaldrive",
-                          "causaldrive_unit_tests", "causaldrive_e2e_tests",
-                          "causaldrive_no_mpi_tests"], env=env)
+    rc, _ = run("build", ["cmake", "--build", BUILD, "-j", str(JOBS), "--target", *targets], env=env)
     if rc != 0:
         finish(1)
-    cd = os.path.join(BUILD, "causaldrive")
+    return os.path.join(BUILD, "causaldrive")
+
+
+def main():
+    data = sys.argv[1] if len(sys.argv) > 1 else next(
+        (d for d in (os.path.join(ROOT, ".gpu/data"), os.path.join(ROOT, "runs/quickstart/data"))
+         if os.path.isdir(d)), None)
+    torch_prefix = environment()
+    env = unpack_debs(dict(os.environ))
+    cd = build(env, torch_prefix, ["causaldrive", "causaldrive_unit_tests", "causaldrive_e2e_tests",
+                                   "causaldrive_no_mpi_tests"])
     _, version = run("version", [cd, "--version"], env=env)
     report["version"] = version.strip()
 
