@@ -235,13 +235,13 @@ class PyDrivingEnv {
 
   py::dict observation() {
     const World& w = env().world();
-    const BevRenderer& bev = w.renderer();
-    py::array_t<uint8_t> frame({static_cast<py::ssize_t>(kBevChannelCount),
-                                static_cast<py::ssize_t>(bev.config().height),
-                                static_cast<py::ssize_t>(bev.config().width)});
+    const FrameFormat& f = w.frame_format();
+    py::array_t<uint8_t> frame({static_cast<py::ssize_t>(f.channels),
+                                static_cast<py::ssize_t>(f.height),
+                                static_cast<py::ssize_t>(f.width)});
     w.render(frame.mutable_data());
     py::dict obs;
-    obs["bev"] = frame;
+    obs[f.view.c_str()] = frame;  // "bev" or "camera" (sense.view)
     obs["speed"] = float_array({w.ego().speed});
     obs["command"] = w.command();
     return obs;
@@ -319,10 +319,13 @@ void fill_observation(const py::dict& d, ObservationHolder& h, bool frames) {
   o.speed = d.contains("speed") ? py::array_t<double, py::array::forcecast>::ensure(d["speed"]).at(0) : 0.0;
   o.command = d.contains("command") ? d["command"].cast<int>() : 0;
   if (!frames) return;
-  if (!d.contains("bev")) throw ConfigError("the observation has no 'bev'");
-  h.frames = py::array_t<uint8_t, py::array::c_style | py::array::forcecast>::ensure(d["bev"]);
+  // The frames under the view's name: "bev", or "camera" (sense.view = "camera").
+  const char* key = d.contains("camera") ? "camera" : "bev";
+  if (!d.contains(key)) throw ConfigError("the observation has no 'bev' (nor 'camera')");
+  h.frames = py::array_t<uint8_t, py::array::c_style | py::array::forcecast>::ensure(d[key]);
   if (!h.frames || (h.frames.ndim() != 3 && h.frames.ndim() != 4))
-    throw ConfigError("observation 'bev' must be a uint8 array of shape (C, H, W) or (K, C, H, W)");
+    throw ConfigError(std::string("observation '") + key +
+                      "' must be a uint8 array of shape (C, H, W) or (K, C, H, W)");
   const int nd = static_cast<int>(h.frames.ndim());
   const py::ssize_t k = nd == 4 ? h.frames.shape(0) : 1;
   o.channels = static_cast<int>(h.frames.shape(nd - 3));
@@ -393,7 +396,7 @@ class CallableAgent : public Agent {
     uint8_t* p = frames.mutable_data();
     for (const uint8_t* f : obs.frames) p = std::copy(f, f + bytes, p);
     py::dict d;
-    d["bev"] = frames;
+    d[obs.view] = frames;  // "bev" or "camera", as the Python env names it
     d["speed"] = float_array({obs.speed});
     d["command"] = obs.command;
     const std::vector<double> a = action_values(
@@ -575,12 +578,16 @@ py::dict load_episode(const std::string& path) {
     EpisodeMeta meta;
     EpisodeData d = read_episode(path, &meta);
     const auto t = static_cast<py::ssize_t>(d.frames());
-    if (d.bev.empty() && !d.bev_packed.empty()) {
-      FrameBytes planes(d.frame_bytes() * d.frames());
-      for (size_t i = 0; i < d.frames(); ++i) d.frame_planes(i, planes.data() + i * d.frame_bytes());
-      d.bev = std::move(planes);
+    if (d.camera()) {  // the front camera's RGB frames, as the file's dataset "frames"
+      out["frames"] = owning_array<uint8_t>(std::move(d.rgb), {t, d.channels, d.height, d.width});
+    } else {
+      if (d.bev.empty() && !d.bev_packed.empty()) {
+        FrameBytes planes(d.frame_bytes() * d.frames());
+        for (size_t i = 0; i < d.frames(); ++i) d.frame_planes(i, planes.data() + i * d.frame_bytes());
+        d.bev = std::move(planes);
+      }
+      out["bev"] = owning_array<uint8_t>(std::move(d.bev), {t, d.channels, d.height, d.width});
     }
-    out["bev"] = owning_array<uint8_t>(std::move(d.bev), {t, d.channels, d.height, d.width});
     out["speed"] = owning_array<float>(std::move(d.speed), {t});
     out["action"] = owning_array<float>(std::move(d.action), {t, d.action_dim});
     out["command"] = owning_array<int32_t>(std::move(d.command), {t});
@@ -629,10 +636,11 @@ PYBIND11_MODULE(_core, m) {
       .def("expert_action", &PyDrivingEnv::expert_action)
       .def("cpp_episode", &PyDrivingEnv::cpp_episode, py::arg("episode"), py::arg("agent") = "expert")
       .def("close", &PyDrivingEnv::close)
-      .def_property_readonly("channels", [](PyDrivingEnv&) { return static_cast<int>(kBevChannelCount); })
-      .def_property_readonly("height", [](PyDrivingEnv& e) { return e.env().world().renderer().config().height; })
-      .def_property_readonly("width", [](PyDrivingEnv& e) { return e.env().world().renderer().config().width; })
-      .def_property_readonly("channel_names", [](PyDrivingEnv&) { return bev_channel_names(); })
+      .def_property_readonly("view", [](PyDrivingEnv& e) { return e.env().world().frame_format().view; })
+      .def_property_readonly("channels", [](PyDrivingEnv& e) { return e.env().world().frame_format().channels; })
+      .def_property_readonly("height", [](PyDrivingEnv& e) { return e.env().world().frame_format().height; })
+      .def_property_readonly("width", [](PyDrivingEnv& e) { return e.env().world().frame_format().width; })
+      .def_property_readonly("channel_names", [](PyDrivingEnv& e) { return e.env().world().frame_format().channel_names; })
       .def_property_readonly("episodes", [](PyDrivingEnv& e) { return e.env().episodes(); })
       .def_property_readonly("suite", [](PyDrivingEnv& e) {
         return e.env().has_suite() ? py::object(py::str(e.env().suite().name)) : py::object(py::none());

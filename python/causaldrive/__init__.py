@@ -68,7 +68,8 @@ class DrivingEnv(_Env):
     for an episode of seed s, so the seed attribute of a collected file replays its task).
 
     Observation: {"bev": uint8 (C, H, W) with values 0 or 255, "speed": float32 (1,) in m/s,
-    "command": int (0 follow, 1 left, 2 right, 3 straight)}.
+    "command": int (0 follow, 1 left, 2 right, 3 straight)}; with sense.view = "camera" the
+    frame is "camera": uint8 (3, H, W), the front camera's RGB (self.view names the key).
     Action: float32 (2,): throttle and brake in [0, 1]; with ego.lateral = "free" (3,): steer
     in [-1, 1] (positive to the left) follows, and info adds "lateral_error_m",
     "heading_error" (to the lane centre) and "steer_angle" (rad of road wheel).
@@ -87,8 +88,9 @@ class DrivingEnv(_Env):
         self._env = _core.DrivingEnv(name, config, settings)
         self.name = name
         c, h, w = self._env.channels, self._env.height, self._env.width
+        self.view = self._env.view  # sense.view: the frames' key, "bev" or "camera"
         self.observation_space = Dict({
-            "bev": Box(0, 255, (c, h, w), "uint8"),
+            self.view: Box(0, 255, (c, h, w), "uint8"),
             "speed": Box(0.0, float("inf"), (1,), "float32"),
             "command": Discrete(4),
         })

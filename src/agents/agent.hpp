@@ -21,6 +21,7 @@ class World;  // what the privileged expert drives in (methods/expert.cpp)
 struct Observation {
   std::vector<const uint8_t*> frames;  // oldest first, last = current; each C*H*W bytes, 0/255
   int channels = 0, height = 0, width = 0;
+  const char* view = "bev";  // what the frames are (sense.view): "bev" or "camera"
   double speed = 0;  // m/s measured; learned agents zero it unless their config says otherwise
   int command = 0;   // cd::Command at the next junction
   // Navigation goal for planners (dim, rip): the route point goal_distance() metres ahead of

@@ -16,11 +16,14 @@ ObservationFeed::ObservationFeed(const World& world, const Agent& agent, const S
       frames_(agent.uses_frames()),
       goal_distance_(agent.goal_distance()),
       span_(static_cast<size_t>((k_ - 1) * stride_ + 1)),
-      frame_bytes_(world.renderer().frame_bytes()),
+      frame_bytes_(world.frame_format().bytes()),
       ring_(frames_ ? span_ * frame_bytes_ : 0) {
-  obs_.channels = kBevChannelCount;
-  obs_.height = world.renderer().config().height;
-  obs_.width = world.renderer().config().width;
+  if (shift_) require_bev_for_shift(world.frame_format().view);
+  const FrameFormat& f = world.frame_format();
+  obs_.view = f.view.c_str();
+  obs_.channels = f.channels;
+  obs_.height = f.height;
+  obs_.width = f.width;
   obs_.frames.resize(frames_ ? k_ : 0);
 }
 

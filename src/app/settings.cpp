@@ -63,6 +63,7 @@ void visit_settings(S& st, V&& v) {
   v.number("bev", "marking_width", st.bev.marking_width, 0.01, 2);
   v.integer("bev", "static_supersample", st.bev.static_supersample, 1, 8);
 
+  v.text("sense", "view", st.view, {"bev", "camera"});
   v.integer("sense.camera", "width", st.camera.width, 8, 4096);
   v.integer("sense.camera", "height", st.camera.height, 8, 4096);
   v.number("sense.camera", "mount_height", st.camera.mount_height, 0.1, 10);

@@ -80,10 +80,10 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
   }
 
   EpisodeScorer scorer(world, task, dt);
-  FrameBytes seen;  // the agent's current frame, packed, for the recording
+  FrameBytes seen;  // the agent's current frame as stored (the BEV packed), for the recording
   if (record) {
     begin_recording(world, *record);
-    seen.resize(record->frame_pixels());
+    seen.resize(world.camera_view() ? record->frame_bytes() : record->frame_pixels());
   }
   long n = 0;
   const auto wall0 = std::chrono::steady_clock::now();
@@ -107,7 +107,10 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
     lap(profile ? &stats->act_s : nullptr);
     if (record) {
       if (!obs.frames.empty()) {
-        pack_planes(obs.frames.back(), record->frame_pixels(), record->channels, seen.data());
+        if (world.camera_view())
+          std::copy_n(obs.frames.back(), seen.size(), seen.data());
+        else
+          pack_planes(obs.frames.back(), record->frame_pixels(), record->channels, seen.data());
         record_state(world, *record, seen.data());
       } else {
         record_state(world, *record);
@@ -279,6 +282,7 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
     return req.make ? req.make(settings, w) : make_agent(req.agent, req.checkpoint, settings, w);
   };
   std::string agent_name = new_agent(nullptr)->name();
+  if (settings.eval.sensor == "shifted") require_bev_for_shift(settings.view);
   const int trials = settings.eval.trials > 0 ? settings.eval.trials : suite.trials;
   const int total = static_cast<int>(suite.tasks.size()) * trials;
   const std::string label = req.label.empty() ? req.agent : req.label;

@@ -64,16 +64,14 @@ void write_camera_preview(const Settings& settings, const std::string& png) {
   const int tiles = static_cast<int>(places.size());
   CameraRenderer camera(world.map(), settings.camera);
   const int H = settings.camera.height, W = settings.camera.width;
-  const size_t plane = static_cast<size_t>(H) * W;
-  std::vector<uint8_t> frame(camera.frame_bytes()), rgb(plane * 3 * tiles);
+  std::vector<uint8_t> frame(camera.frame_bytes()), rgb;
   CameraScene scene;
   for (const SignalHead& h : find_signal_heads(world.network()))
     scene.lights.push_back({h.pole, h.facing, 'r'});
   for (int t = 0; t < tiles; ++t) {
     scene.ego = places[static_cast<size_t>(t)];
     camera.render(scene, frame.data());
-    for (size_t p = 0; p < plane; ++p)  // planes -> interleaved rows, tile t below tile t-1
-      for (int c = 0; c < 3; ++c) rgb[(t * plane + p) * 3 + c] = frame[c * plane + p];
+    append_rgb_rows(frame.data(), H, W, rgb);  // tile t below tile t-1
   }
   write_png_rgb(png, rgb, W, H * tiles);
   std::printf("camera preview of %d places -> %s\n", tiles, png.c_str());

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 
+#include "core/png.hpp"
 #include "core/rng.hpp"
 #include "world/town.hpp"
 
@@ -43,22 +44,27 @@ ExpertRecorder::ExpertRecorder(World& world, const Settings& settings)
     : world_(world), settings_(settings), expert_(settings.expert) {}
 
 void begin_recording(const World& world, EpisodeData& d) {
-  const BevRenderer& bev = world.renderer();
+  const FrameFormat& f = world.frame_format();
   d = EpisodeData{};
-  d.channels = kBevChannelCount;
-  d.height = bev.config().height;
-  d.width = bev.config().width;
+  d.channels = f.channels;
+  d.height = f.height;
+  d.width = f.width;
   d.action_dim = world.free_lateral() ? 3 : 2;  // + steer when the ego steers
   for (const auto& name : cause_names()) d.causes[name];  // the series record_causes fills
 }
 
-void record_state(const World& world, EpisodeData& d, const uint8_t* packed_frame) {
-  const size_t at = d.bev_packed.size();
-  d.bev_packed.resize(at + d.frame_pixels());
-  if (packed_frame)
-    std::copy(packed_frame, packed_frame + d.frame_pixels(), d.bev_packed.begin() + at);
+void record_state(const World& world, EpisodeData& d, const uint8_t* stored_frame) {
+  // The camera's frames as rendered (RGB planes); the BEV's as bit planes.
+  FrameBytes& frames = world.camera_view() ? d.rgb : d.bev_packed;
+  const size_t n = world.camera_view() ? d.frame_bytes() : d.frame_pixels();
+  const size_t at = frames.size();
+  frames.resize(at + n);
+  if (stored_frame)
+    std::copy(stored_frame, stored_frame + n, frames.begin() + at);
+  else if (world.camera_view())
+    world.render(frames.data() + at);
   else
-    world.render_packed(d.bev_packed.data() + at);
+    world.render_packed(frames.data() + at);
   if (world.free_lateral()) {
     d.lateral_error.push_back(static_cast<float>(world.road_contact().lateral_error));
     d.heading_error.push_back(static_cast<float>(world.road_contact().heading_error));
@@ -81,8 +87,10 @@ EpisodeMeta recording_meta(const World& world, const Settings& settings) {
   EpisodeMeta meta;
   meta.town = network_label(settings.world.town);
   meta.dt = settings.world.dt;
-  meta.metres_per_pixel = world.renderer().config().metres_per_pixel;
-  for (const auto& n : bev_channel_names()) meta.channels.push_back(n);
+  const FrameFormat& f = world.frame_format();
+  meta.metres_per_pixel = f.metres_per_pixel;
+  meta.channels = f.channel_names;
+  meta.extra["view"] = f.view;
   meta.action_names = {"throttle", "brake"};
   if (world.free_lateral()) meta.action_names.push_back("steer");
   meta.extra["traffic"] = settings.world.traffic;
@@ -108,11 +116,15 @@ Control ExpertRecorder::record_step(EpisodeData& d, Rng* augment) const {
     d.augment.insert(d.augment.end(), {static_cast<float>(shift), static_cast<float>(turn)});
   }
   const Pose2 seen = shifted_pose(world_.ego().pose, shift, turn);
-  if (augmented) {
-    BevScene scene = world_.scene();
-    scene.ego = seen;
-    FrameBytes frame(d.frame_pixels());
-    world_.renderer().render_packed(scene, frame.data());
+  if (augmented) {  // as stored: the camera's RGB planes, the BEV's bit planes
+    FrameBytes frame(world_.camera_view() ? d.frame_bytes() : d.frame_pixels());
+    if (world_.camera_view()) {
+      world_.render_from(seen, frame.data());
+    } else {
+      BevScene scene = world_.scene();
+      scene.ego = seen;
+      world_.renderer().render_packed(scene, frame.data());
+    }
     record_state(world_, d, frame.data());
   } else {
     record_state(world_, d);
@@ -133,7 +145,10 @@ EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, Epi
 
   begin(d);
   const long expected = static_cast<long>(task.timeout_s / settings_.world.dt) + 1;
-  d.bev_packed.reserve(d.frame_pixels() * static_cast<size_t>(expected));
+  if (world_.camera_view())
+    d.rgb.reserve(d.frame_bytes() * static_cast<size_t>(expected));
+  else
+    d.bev_packed.reserve(d.frame_pixels() * static_cast<size_t>(expected));
 
   const NoiseSettings& ns = cs.noise;
   Rng noise_rng(derive_seed(seed, 2));
@@ -152,7 +167,13 @@ EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, Epi
       std::snprintf(name, sizeof name, "/frame_%05zu.png", d.frames() - 1);
       std::vector<uint8_t> planes(d.frame_bytes());
       d.frame_planes(d.frames() - 1, planes.data());
-      write_bev_png(png_dir + name, planes.data(), d.channels, d.height, d.width);
+      if (d.camera()) {
+        std::vector<uint8_t> rgb;
+        append_rgb_rows(planes.data(), d.height, d.width, rgb);
+        write_png_rgb(png_dir + name, rgb, d.width, d.height);
+      } else {
+        write_bev_png(png_dir + name, planes.data(), d.channels, d.height, d.width);
+      }
     }
 
     Control executed = label;

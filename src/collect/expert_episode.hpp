@@ -29,10 +29,11 @@ const std::vector<std::string>& cause_names();
 // A recording of a World, step by step (collect's expert episodes, eval --record's agent
 // episodes): `data` emptied and shaped for this world's frames (+ steer when the ego steers).
 void begin_recording(const World& world, EpisodeData& data);
-// Appends the current state: the BEV frame (`packed_frame`, H*W bytes of channel bits, when
-// given: what an agent saw or an augmented view; else the world's own), a free ego's lane
-// errors, speed, command, pose and the causes. The action is appended apart (record_action).
-void record_state(const World& world, EpisodeData& data, const uint8_t* packed_frame = nullptr);
+// Appends the current state: the frame (`stored_frame` when given: what an agent saw or an
+// augmented view, as stored: the BEV's H*W bytes of channel bits, the camera's 3*H*W RGB
+// bytes; else the world's own), a free ego's lane errors, speed, command, pose and the causes.
+// The action is appended apart (record_action).
+void record_state(const World& world, EpisodeData& data, const uint8_t* stored_frame = nullptr);
 // Appends one action: throttle, brake and, when `steers`, steer.
 void record_action(EpisodeData& data, const Control& control, bool steers);
 // The attributes every recording of this world shares: town, dt, metres per pixel, channel

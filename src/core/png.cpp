@@ -42,4 +42,11 @@ void write_png_rgb(const std::string& path, const std::vector<uint8_t>& pixels, 
   write_file_atomic(path, encode_png(pixels, width, height, 3));
 }
 
+void append_rgb_rows(const uint8_t* planes, int height, int width, std::vector<uint8_t>& rgb) {
+  const size_t plane = static_cast<size_t>(height) * width, at = rgb.size();
+  rgb.resize(at + plane * 3);
+  for (size_t p = 0; p < plane; ++p)
+    for (size_t c = 0; c < 3; ++c) rgb[at + p * 3 + c] = planes[c * plane + p];
+}
+
 }  // namespace cd

@@ -15,5 +15,8 @@ void write_png_gray(const std::string& path, const std::vector<uint8_t>& pixels,
                     int height);
 void write_png_rgb(const std::string& path, const std::vector<uint8_t>& pixels, int width,
                    int height);
+// Appends an RGB frame stored as 3 planes of height x width bytes (the camera's and MuJoCo's
+// frames) to `rgb` as interleaved rows, below what it holds.
+void append_rgb_rows(const uint8_t* planes, int height, int width, std::vector<uint8_t>& rgb);
 
 }  // namespace cd

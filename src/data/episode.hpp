@@ -27,12 +27,15 @@ struct EpisodeMeta {
 };
 
 struct EpisodeData {
-  int channels = 0, height = 0, width = 0;  // BEV frame shape C x H x W
+  int channels = 0, height = 0, width = 0;  // frame shape C x H x W
   int action_dim = 0;
   FrameBytes bev;                // T*C*H*W, row-major, 0 or 255
   // Recorders may fill this instead of bev: T*H*W bytes, bit c of a byte = channel c
   // (see core/bitplanes.hpp). Exactly one of bev and bev_packed holds the frames.
   FrameBytes bev_packed;
+  // The front camera's frames (sense.view = "camera"): T*3*H*W RGB bytes, dataset "frames" of
+  // the file. When it holds the frames, bev and bev_packed are empty.
+  FrameBytes rgb;
   std::vector<float> speed;      // T, m/s
   std::vector<float> action;     // T*action_dim, the expert's action (the label)
   std::vector<int32_t> command;  // T
@@ -53,6 +56,7 @@ struct EpisodeData {
   std::map<std::string, std::vector<float>> causes;
 
   size_t frames() const { return speed.size(); }
+  bool camera() const { return !rgb.empty(); }
   size_t frame_bytes() const { return static_cast<size_t>(channels) * height * width; }
   size_t frame_pixels() const { return static_cast<size_t>(height) * width; }
   // Frame t as C planes, whichever representation holds it; out has frame_bytes() bytes.

@@ -70,7 +70,11 @@ void validate(const EpisodeMeta& meta, const EpisodeData& data) {
           std::to_string(want) + " for " + std::to_string(frames) + " frames");
     }
   };
-  if (data.bev_packed.empty()) {
+  if (data.camera()) {
+    if (!data.bev.empty() || !data.bev_packed.empty()) bad("both rgb and bev hold frames");
+    if (data.channels != 3) bad("rgb frames have 3 channels, not " + std::to_string(data.channels));
+    expect("rgb", data.rgb.size(), frames * data.frame_bytes());
+  } else if (data.bev_packed.empty()) {
     expect("bev", data.bev.size(), frames * data.frame_bytes());
   } else {
     if (!data.bev.empty()) bad("both bev and bev_packed hold frames");
@@ -123,7 +127,10 @@ void write_file(const std::string& file_path, const EpisodeMeta& meta, const Epi
   const hsize_t c = data.channels, h = data.height, w = data.width;
   const hsize_t a = data.action_dim;
   // One frame per chunk: training reads random frames, each then costs one decompression.
-  if (data.bev_packed.empty()) {
+  if (data.camera()) {
+    write_dataset(root, "frames", H5T_STD_U8LE, H5T_NATIVE_UINT8, {t, c, h, w}, {1, c, h, w},
+                  data.rgb.data());
+  } else if (data.bev_packed.empty()) {
     write_dataset(root, "bev", H5T_STD_U8LE, H5T_NATIVE_UINT8, {t, c, h, w}, {1, c, h, w},
                   data.bev.data());
   } else {
@@ -184,7 +191,13 @@ EpisodeMeta read_meta(hid_t root) {
 
 EpisodeData read_data(hid_t root, const EpisodeMeta& meta) {
   EpisodeData data;
-  auto bev = read_dataset<uint8_t>(root, "bev", "bev", H5T_NATIVE_UINT8, H5T_INTEGER, 4);
+  // The frames: the BEV's "bev", or the front camera's "frames" (RGB).
+  const bool camera = !has_link(root, "bev", "dataset 'bev'") &&
+                      has_link(root, "frames", "dataset 'frames'");
+  const char* frames_name = camera ? "frames" : "bev";
+  auto bev = read_dataset<uint8_t>(root, frames_name, frames_name, H5T_NATIVE_UINT8, H5T_INTEGER, 4);
+  if (camera && bev.dims[1] != 3)
+    throw Failure("dataset 'frames' should have 3 channels (RGB), has " + std::to_string(bev.dims[1]));
   auto speed = read_dataset<float>(root, "speed", "speed", H5T_NATIVE_FLOAT, H5T_FLOAT, 1);
   auto action = read_dataset<float>(root, "action", "action", H5T_NATIVE_FLOAT, H5T_FLOAT, 2);
   auto command =
@@ -199,7 +212,7 @@ EpisodeData read_data(hid_t root, const EpisodeMeta& meta) {
                     std::to_string(frames));
     }
   };
-  expect_frames("bev", bev.dims[0]);
+  expect_frames(frames_name, bev.dims[0]);
   expect_frames("action", action.dims[0]);
   expect_frames("command", command.dims[0]);
   expect_frames("pose", pose.dims[0]);
@@ -235,18 +248,18 @@ EpisodeData read_data(hid_t root, const EpisodeMeta& meta) {
   }
   if (meta.channels.size() != bev.dims[1]) {
     throw Failure("attribute 'channels' names " + std::to_string(meta.channels.size()) +
-                  " channels, bev has " + std::to_string(bev.dims[1]));
+                  " channels, " + frames_name + " has " + std::to_string(bev.dims[1]));
   }
   if (meta.action_names.size() != action.dims[1]) {
     throw Failure("attribute 'action_names' names " + std::to_string(meta.action_names.size()) +
                   " actions, action has " + std::to_string(action.dims[1]));
   }
 
-  data.channels = dim_as_int(bev.dims[1], "bev");
-  data.height = dim_as_int(bev.dims[2], "bev");
-  data.width = dim_as_int(bev.dims[3], "bev");
+  data.channels = dim_as_int(bev.dims[1], frames_name);
+  data.height = dim_as_int(bev.dims[2], frames_name);
+  data.width = dim_as_int(bev.dims[3], frames_name);
   data.action_dim = dim_as_int(action.dims[1], "action");
-  data.bev.assign(bev.values.begin(), bev.values.end());
+  (camera ? data.rgb : data.bev).assign(bev.values.begin(), bev.values.end());
   data.speed = std::move(speed.values);
   data.action = std::move(action.values);
   data.command = std::move(command.values);

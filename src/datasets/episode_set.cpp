@@ -65,7 +65,9 @@ PackedEpisode pack(const std::string& path, const EpisodeData& d) {
   p.file = fs::path(path).filename().string();
   p.frames = static_cast<int>(d.frames());
   const size_t pixels = d.frame_pixels();
-  if (!d.bev_packed.empty()) {
+  if (d.camera()) {
+    p.frame_data.assign(d.rgb.begin(), d.rgb.end());  // RGB bytes as recorded (FrameLayout::Bytes)
+  } else if (!d.bev_packed.empty()) {
     p.frame_data.assign(d.bev_packed.begin(), d.bev_packed.end());
   } else {
     p.frame_data.assign(static_cast<size_t>(p.frames) * pixels, 0);
@@ -148,9 +150,14 @@ void add_episode(EpisodeSet& set, const std::string& path, bool keep_full_path) 
     } catch (const Error& e) {
       rethrow(e);
     }
-    if (d.channels > kMaxPackedChannels)
+    if (!d.camera() && d.channels > kMaxPackedChannels)
       bad("has " + std::to_string(d.channels) + " BEV channels; training supports at most " +
           std::to_string(kMaxPackedChannels));
+    const FrameLayout layout = d.camera() ? FrameLayout::Bytes : FrameLayout::BitPlanes;
+    if (!first && layout != set.layout)
+      bad(std::string("holds ") + (d.camera() ? "camera" : "BEV") + " frames but " +
+          set.episodes.front().file + " holds " + (d.camera() ? "BEV" : "camera") +
+          " frames; a data folder must hold one view");
     // (throttle, brake), and steer after them when the ego steered (ego.lateral = "free").
     if (d.action_dim != 2 && d.action_dim != 3)
       bad("actions should be (throttle, brake) or (throttle, brake, steer), found " +
@@ -165,6 +172,7 @@ void add_episode(EpisodeSet& set, const std::string& path, bool keep_full_path) 
       set.dt = meta.dt;
       set.metres_per_pixel = meta.metres_per_pixel;
       set.channel_names = meta.channels;
+      set.layout = layout;
     }
     channels = d.channels, height = d.height, width = d.width, action_dim = d.action_dim;
     p = pack(path, d);

@@ -7,6 +7,7 @@
 #include "data/mujoco_episode.hpp"
 #include "datasets/episode_set.hpp"
 #include "nn/policy_nets.hpp"
+#include "sense/camera.hpp"
 #include "device/device.hpp"
 
 namespace cd {
@@ -110,8 +111,11 @@ const std::vector<std::string>& policy_runner_methods() {
 void PolicyRunner::Impl::fill(int row, const uint8_t* const* frames, double speed_value,
                               int command_value) {
   float* img = image.data_ptr<float>() + static_cast<size_t>(row) * ck.input.history * frame_values;
-  const FrameLayout layout = ck.input.domain == kMujocoDomain ? FrameLayout::Bytes
-                                                              : FrameLayout::BitPlanes;
+  // RGB bytes (MuJoCo-Image, the driving camera) or the BEV's 0/255 planes.
+  const FrameLayout layout =
+      ck.input.domain == kMujocoDomain || ck.input.channel_names == camera_channel_names()
+          ? FrameLayout::Bytes
+          : FrameLayout::BitPlanes;
   for (int k = 0; k < ck.input.history; ++k)
     frame_bytes_to_unit(layout, frames[k], frame_values,
                         img + static_cast<size_t>(k) * frame_values);

@@ -348,15 +348,7 @@ class DimAgent : public Agent {
         planning_(s.dim),
         ego_(s.ego) {
     planner_.set_planning(planning_);
-    // Refused here, in the process that loads the agent, rather than at the first act() of
-    // an episode worker.
-    const InputFormat& in = planner_.run().input;
-    const int channels = static_cast<int>(kBevChannelCount);
-    if (in.channels != channels || in.height != s.bev.height || in.width != s.bev.width)
-      throw ConfigError("agent '" + method_ + "' was trained on " +
-                        frame_shape(in.channels, in.height, in.width) + " BEV frames but the [bev] " +
-                        "settings give " + frame_shape(channels, s.bev.height, s.bev.width) +
-                        ": use the [bev] settings of its training data");
+    // Frames of another view or size are refused by make_agent (require_trained_view).
   }
 
   std::string name() const override { return method_; }

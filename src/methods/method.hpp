@@ -14,6 +14,7 @@
 namespace cd {
 
 class World;
+struct FrameFormat;
 
 using TrainFn = TrainSummary (*)(const Settings& settings, const TrainRequest& request);
 // `run_dir` is the method's training output (empty for methods without training); `world` the
@@ -53,8 +54,13 @@ TrainSummary train_method(const Settings& settings, const TrainRequest& request)
 
 // Agents by name: expert, cs, and the learned methods (which need their run folder), to drive
 // in `world` (the expert needs it to act; null: an agent that is only checked).
-// Throws ConfigError for an unknown name or a folder of another method.
+// Throws ConfigError for an unknown name or a folder of another method, and for a run whose
+// frames (its record's "input") are not the world's: another view (sense.view) or size.
 std::unique_ptr<Agent> make_agent(const std::string& name, const std::string& run_dir,
                                   const Settings& settings, const World* world = nullptr);
+// The last check of make_agent: ConfigError when `run_dir` was trained on frames of another
+// view or size than `world` renders; nothing when its record names no input.
+void require_trained_view(const std::string& agent, const std::string& run_dir,
+                          const FrameFormat& world);
 
 }  // namespace cd

@@ -1,12 +1,19 @@
 // The one table of methods. Adding a method: its file in this folder, and its line here.
 #include <algorithm>
 
+#include <filesystem>
+
+#include <nlohmann/json.hpp>
+
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/run_lock.hpp"
 #include "data/mujoco_episode.hpp"
 #include "datasets/episode_set.hpp"
 #include "inference/policy_runner.hpp"
 #include "methods/method.hpp"
+#include "sense/camera.hpp"
+#include "world/world.hpp"
 
 namespace cd {
 
@@ -146,6 +153,53 @@ TrainSummary train_method(const Settings& settings, const TrainRequest& request)
   return m.train(s, request);
 }
 
+namespace {
+
+// What a run's record says its network was trained on: "input" of checkpoint.json (the policy
+// family), run.json (the cim family) or dim.json (dim, rip); false when the folder has none
+// of them (the method's own loader then says what is missing).
+bool trained_frames(const std::string& dir, FrameFormat& out, std::string& record) {
+  for (const char* name : {"checkpoint.json", "run.json", "dim.json"}) {
+    record = dir + "/" + name;
+    if (!std::filesystem::exists(record)) continue;
+    try {
+      const nlohmann::json in = nlohmann::json::parse(read_file_bytes(record)).at("input");
+      out.channels = in.at("channels").get<int>();
+      out.height = in.at("height").get<int>();
+      out.width = in.at("width").get<int>();
+      if (in.contains("channel_names"))
+        out.channel_names = in.at("channel_names").get<std::vector<std::string>>();
+    } catch (const nlohmann::json::exception&) {
+      return false;  // the method's own loader names what is damaged
+    }
+    out.view = out.channel_names == camera_channel_names() ? "camera" : "bev";
+    return true;
+  }
+  return false;
+}
+
+std::string shape_text(const FrameFormat& f) {
+  return std::to_string(f.channels) + "x" + std::to_string(f.height) + "x" + std::to_string(f.width);
+}
+
+}  // namespace
+
+void require_trained_view(const std::string& agent, const std::string& run_dir,
+                          const FrameFormat& world) {
+  FrameFormat trained;
+  std::string record;
+  if (!trained_frames(run_dir, trained, record)) return;
+  // The view and the size; the BEV's channel names are not compared (older runs name a few
+  // layers otherwise).
+  if (trained.view == world.view && trained.channels == world.channels &&
+      trained.height == world.height && trained.width == world.width)
+    return;
+  throw ConfigError("agent '" + agent + "': " + run_dir + " was trained on " + trained.view + " frames (" +
+                    shape_text(trained) + "), this world renders " + world.view + " frames (" +
+                    shape_text(world) + ", sense.view = \"" + world.view +
+                    "\"); evaluate it with the view and size it was trained on");
+}
+
 std::unique_ptr<Agent> make_agent(const std::string& name, const std::string& run_dir,
                                   const Settings& settings, const World* world) {
   const MethodSpec& m = find_method(name);
@@ -153,6 +207,8 @@ std::unique_ptr<Agent> make_agent(const std::string& name, const std::string& ru
     throw ConfigError("agent '" + name + "' needs --checkpoint DIR (the output of "
                       "`causaldrive train --method " + name + "`)");
   std::unique_ptr<Agent> agent = m.agent(name, run_dir, settings, world);
+  if (agent->uses_frames() && !run_dir.empty())
+    require_trained_view(name, run_dir, world ? world->frame_format() : frame_format_of(settings));
   if (settings.ego.lateral == "free" && !agent->steers())
     throw ConfigError("agent '" + name + "' does not steer: it cannot drive with ego.lateral = "
                       "\"free\" yet; use \"route\"");

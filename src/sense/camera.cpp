@@ -35,6 +35,11 @@ std::vector<std::string> camera_weather_names() {
   return names;
 }
 
+const std::vector<std::string>& camera_channel_names() {
+  static const std::vector<std::string> names = {"red", "green", "blue"};
+  return names;
+}
+
 const CameraWeather& camera_weather(const std::string& name) {
   std::string known;
   for (const CameraWeather& w : camera_weathers()) {

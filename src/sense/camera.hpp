@@ -40,6 +40,8 @@ const std::vector<CameraWeather>& camera_weathers();
 // Throws ConfigError naming the known sets.
 const CameraWeather& camera_weather(const std::string& name);
 std::vector<std::string> camera_weather_names();
+// The camera's frame channels, as recorded and as MuJoCo-Image's RGB frames name them.
+const std::vector<std::string>& camera_channel_names();
 
 struct CameraConfig {
   int width = 288;   // seed 001's 288 x 80; CILRS's crop is 200 x 88

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "core/error.hpp"
 #include "core/rng.hpp"
 
 namespace cd {
@@ -102,6 +103,12 @@ void render_sensor(const BevRenderer& renderer, const BevScene& scene, const Sen
   }
   renderer.render(shift_scene(scene, *shift, renderer.config(), frame_key), out);
   fade_markings(out, renderer.config(), scene.ego, *shift);
+}
+
+void require_bev_for_shift(const std::string& view) {
+  if (view != "bev")
+    throw ConfigError("eval.sensor = \"shifted\" is the BEV's perception noise; the camera's "
+                      "new sensor condition is a held-out weather (sense.camera.weather)");
 }
 
 }  // namespace cd

@@ -15,6 +15,7 @@
 // worn paint is fixed on the road (cells of kFadeCell m in the network frame, drawn from the
 // seed alone), so it stays put while the ego drives past, as real worn paint does.
 #include <cstdint>
+#include <string>
 
 #include "sense/bev.hpp"
 
@@ -53,5 +54,9 @@ void fade_markings(uint8_t* frame, const BevConfig& cfg, const Pose2& ego,
 // shifted scene rendered and its paint worn otherwise.
 void render_sensor(const BevRenderer& renderer, const BevScene& scene, const SensorShift* shift,
                    uint64_t frame_key, uint8_t* out);
+
+// The shift draws on the BEV: ConfigError for `view` "camera", whose new-sensor condition is a
+// held-out weather (sense.camera.weather).
+void require_bev_for_shift(const std::string& view);
 
 }  // namespace cd

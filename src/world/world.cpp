@@ -275,6 +275,11 @@ World::World(const WorldConfig& config)
   try {
     net_ = std::make_shared<const RoadNetwork>(read_road_network(net_path));
     renderer_ = std::make_unique<BevRenderer>(net_->map, config_.bev);
+    if (config_.view != "bev" && config_.view != "camera")
+      throw ConfigError("sense.view: unknown view '" + config_.view + "' (bev, camera)");
+    if (config_.view == "camera")
+      camera_ = std::make_unique<CameraRenderer>(net_->map, config_.camera);
+    format_ = frame_format_of(config_);
     grid_ = std::make_unique<LaneGrid>(net_->map);
     signal_heads_ = find_signal_heads(*net_);
     free_ = config_.ego.lateral == "free";
@@ -845,7 +850,7 @@ void World::refresh() {
   prev_link_distance_ = ts.next_light_distance;
 }
 
-char World::link_state(const ViaInfo& vi) {
+char World::link_state(const ViaInfo& vi) const {
   if (vi.tls.empty()) return vi.fixed_state;
   if (sumo_->tls_cache_step != steps_since_load_) {
     sumo_->tls_states.clear();
@@ -941,7 +946,7 @@ std::vector<SignalHead> find_signal_heads(const RoadNetwork& net) {
   return heads;
 }
 
-CameraScene World::camera_scene(double radius) {
+CameraScene World::camera_scene(double radius) const {
   CameraScene sc;
   sc.ego = ego_.pose;
   for (const Actor& a : actors_) {
@@ -971,9 +976,29 @@ CameraScene World::camera_scene(double radius) {
   return sc;
 }
 
-void World::render(uint8_t* out) const { renderer_->render(scene(), out); }
+void World::render(uint8_t* out) const {
+  if (camera_)
+    camera_->render(camera_scene(), out);
+  else
+    renderer_->render(scene(), out);
+}
 
-void World::render_packed(uint8_t* out) const { renderer_->render_packed(scene(), out); }
+void World::render_from(const Pose2& seen, uint8_t* out) const {
+  if (camera_) {
+    CameraScene sc = camera_scene();
+    sc.ego = seen;
+    camera_->render(sc, out);
+  } else {
+    BevScene sc = scene();
+    sc.ego = seen;
+    renderer_->render(sc, out);
+  }
+}
+
+void World::render_packed(uint8_t* out) const {
+  if (camera_) throw std::logic_error("render_packed: the camera's frames are RGB, not bit planes");
+  renderer_->render_packed(scene(), out);
+}
 
 std::string World::add_scripted_vehicle(const std::string& lane_id, double pos, double speed) {
   const LaneGeom* g = net_->map.find(lane_id);

@@ -126,14 +126,20 @@ class World {
   void hand_ego_to_sumo();
   void step_bare();
 
-  void render(uint8_t* out) const;         // the BEV of the current state, C*H*W bytes
-  void render_packed(uint8_t* out) const;  // the same as H*W bytes of channel bits
+  // The sensor's frame of the current state (sense.view): frame_format().bytes() bytes, C
+  // planes of H*W (the BEV's channels 0/255, or the camera's RGB). render_from: the same seen
+  // from another ego pose (collect.augment's shifted and rotated views).
+  void render(uint8_t* out) const;
+  void render_from(const Pose2& seen, uint8_t* out) const;
+  const FrameFormat& frame_format() const { return format_; }
+  bool camera_view() const { return camera_ != nullptr; }
+  void render_packed(uint8_t* out) const;  // the BEV as H*W bytes of channel bits (bev only)
   BevScene scene() const;
   // What the front camera sees now (sense/camera.hpp): the road users in view with their
   // colours and brake lights (a car decelerating at over 1 m/s^2), and a signal head at every
   // signalised stop line within `radius` m of the ego, showing its straight link's state (the
   // ego's own approach: the ego's next link, what the BEV shows).
-  CameraScene camera_scene(double radius = 150.0);
+  CameraScene camera_scene(double radius = 150.0) const;
 
   const EgoState& ego() const { return ego_; }
   const GroundTruth& truth() const { return truth_; }
@@ -190,7 +196,7 @@ class World {
   void wait_for_red_onset();
   void advance();  // one SUMO step plus the periodic background refill
   void refresh();  // reads SUMO state, recomputes actors, path, truth, command
-  char link_state(const ViaInfo& vi);  // current state of the link (light or fixed)
+  char link_state(const ViaInfo& vi) const;  // current state of the link (light or fixed)
   // Must a car about to use this internal lane wait (pedestrians on or heading for a foe
   // crossing, cars in the conflict area, priority cars arriving when the ego's link is minor)?
   bool junction_lane_blocked(const std::string& lane, bool minor);
@@ -211,6 +217,9 @@ class World {
   RoadContact contact_;
   std::shared_ptr<const RoadNetwork> net_;
   std::unique_ptr<BevRenderer> renderer_;
+  // sense.view = "camera": the front camera (GL state changes as it draws, hence mutable).
+  mutable std::unique_ptr<CameraRenderer> camera_;
+  FrameFormat format_;
   std::unique_ptr<Sumo> sumo_;
 
   Task task_;

@@ -67,13 +67,37 @@ inline TrafficDensity traffic_density(const WorldSettings& w) {
   return {};
 }
 
-// What a World is built from: the [world], [ego], [bev] and [sense.camera] tables
+// What a World is built from: the [world], [ego], [bev], [sense] and [sense.camera] tables
 // (app/settings.hpp's Settings holds them as its base).
 struct WorldConfig {
   WorldSettings world;
   EgoSettings ego;
   BevConfig bev;
   CameraConfig camera;  // the front camera (sense/camera.hpp)
+  // sense.view: what the ego's sensor gives agents and recordings, "bev" (the semantic
+  // bird's-eye view of [bev]) or "camera" (the front camera of [sense.camera], RGB).
+  std::string view = "bev";
 };
+
+// What the ego's sensor gives each step (sense.view): "bev" or "camera", C planes of H x W bytes
+// with the channels' names (the BEV's layers; red, green, blue), and the BEV's scale (0 for
+// the camera).
+struct FrameFormat {
+  std::string view = "bev";
+  int channels = 0, height = 0, width = 0;
+  std::vector<std::string> channel_names;
+  double metres_per_pixel = 0;
+  size_t pixels() const { return static_cast<size_t>(height) * width; }
+  size_t bytes() const { return static_cast<size_t>(channels) * pixels(); }
+};
+
+// The frames a World of these settings gives (World::frame_format()).
+inline FrameFormat frame_format_of(const WorldConfig& c) {
+  if (c.view == "camera")
+    return {"camera", 3, c.camera.height, c.camera.width, camera_channel_names(), 0.0};
+  const auto& names = bev_channel_names();
+  return {"bev", static_cast<int>(kBevChannelCount), c.bev.height, c.bev.width,
+          {names.begin(), names.end()}, c.bev.metres_per_pixel};
+}
 
 }  // namespace cd

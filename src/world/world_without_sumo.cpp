@@ -27,7 +27,8 @@ void World::step_bare() { no_world(); }
 void World::render(uint8_t*) const { no_world(); }
 void World::render_packed(uint8_t*) const { no_world(); }
 BevScene World::scene() const { no_world(); }
-CameraScene World::camera_scene(double) { no_world(); }
+CameraScene World::camera_scene(double) const { no_world(); }
+void World::render_from(const Pose2&, uint8_t*) const { no_world(); }
 std::vector<SignalHead> find_signal_heads(const RoadNetwork&) { no_world(); }
 std::string World::add_scripted_vehicle(const std::string&, double, double) { no_world(); }
 void World::set_vehicle_speed(const std::string&, double) { no_world(); }

@@ -269,6 +269,24 @@ TEST(ConfigErrors, EvalSensorIsCleanOrShiftedAndItsStrengthsAreInRange) {
   EXPECT_EQ(back.eval.sensor, "shifted");
 }
 
+TEST(ConfigErrors, SenseViewIsBevOrCamera) {
+  EXPECT_EQ(Settings{}.view, "bev") << "the BEV unless asked";
+  std::string path;
+  const std::string msg = config_error("[sense]\nview = \"lidar\"\n", &path);
+  ASSERT_FALSE(msg.empty()) << "view = lidar was accepted";
+  EXPECT_EQ(msg.find('\n'), std::string::npos) << "one line: " << msg;
+  EXPECT_TRUE(has(msg, "sense.view") && has(msg, "lidar")) << msg;
+  EXPECT_TRUE(has(msg, "bev") && has(msg, "camera")) << msg;
+  TempDir dir("cdtest-config");
+  const std::string ok = dir / "camera.toml";
+  test::write_text(ok, "[sense]\nview = \"camera\"\n\n[sense.camera]\nwidth = 200\nheight = 88\n");
+  const Settings s = load_settings(ok);
+  EXPECT_EQ(s.view, "camera");
+  EXPECT_EQ(s.camera.width, 200);
+  EXPECT_EQ(frame_format_of(s).bytes(), 3u * 200 * 88);
+  EXPECT_EQ(settings_from_json(settings_to_json(s), "record").view, "camera");
+}
+
 TEST(ConfigErrors, InconsistentRangesAreRejected) {
   std::string msg = config_error("[collect]\nmin_route_m = 500\nmax_route_m = 200\n");
   EXPECT_TRUE(has(msg, "max_route_m")) << msg;

@@ -12,6 +12,7 @@
 #include <iterator>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "core/error.hpp"
 
@@ -364,6 +365,53 @@ TEST_F(H5EpisodeTest, InconsistentDataThrowsDataErrorOnWrite) {
   EXPECT_THROW(write_episode(path("ep.h5"), meta, make_data()), DataError);
 
   EXPECT_FALSE(fs::exists(path("ep.h5")));
+}
+
+// The front camera's frames (sense.view = "camera", SPEC section 16): the dataset "frames" in
+// place of "bev", (T, 3, H, W) uint8, one frame per chunk, deflated; read back as rgb. A file
+// holding both, or a camera episode of other than 3 channels, is refused on write.
+TEST_F(H5EpisodeTest, CameraFramesAreTheFramesDataset) {
+  const int T = 4, C = 3, H = 5, W = 7;
+  EpisodeData data = make_data(T, C, H, W);
+  data.rgb.assign(data.bev.begin(), data.bev.end());
+  data.bev.clear();
+  EXPECT_TRUE(data.camera());
+  write_episode(path("cam.h5"), make_meta(C), data);
+  const EpisodeData got = read_episode(path("cam.h5"));
+  EXPECT_TRUE(got.camera());
+  EXPECT_TRUE(got.bev.empty() && got.bev_packed.empty());
+  EXPECT_EQ(got.rgb, data.rgb);
+  EXPECT_EQ(got.channels, C);
+  EXPECT_EQ(got.height, H);
+  EXPECT_EQ(got.width, W);
+  std::vector<uint8_t> planes(got.frame_bytes());
+  got.frame_planes(2, planes.data());
+  EXPECT_EQ(planes[0], bev_value(2, 0, 0, 0));
+  EXPECT_EQ(planes.back(), bev_value(2, C - 1, H - 1, W - 1));
+
+  const std::string script = R"PY(
+import sys
+import h5py
+import numpy as np
+T, C, H, W = 4, 3, 5, 7
+with h5py.File(sys.argv[1], "r") as f:
+    assert sorted(f.keys()) == ["action", "causes", "command", "frames", "noise", "pose", "speed"], sorted(f.keys())
+    x = f["frames"]
+    assert x.dtype == np.uint8 and x.shape == (T, C, H, W), (x.dtype, x.shape)
+    assert x.chunks == (1, C, H, W) and x.compression == "gzip", (x.chunks, x.compression)
+    t, c, h, w = np.indices((T, C, H, W))
+    assert np.array_equal(x[...], ((t * 7 + c * 13 + h * 3 + w) % 251).astype(np.uint8))
+)PY";
+  EXPECT_EQ(run_python(dir_, script, path("cam.h5")), 0);
+
+  EpisodeData both = data;
+  both.bev = both.rgb;
+  EXPECT_THROW(write_episode(path("both.h5"), make_meta(C), both), DataError);
+  EpisodeData grey = make_data(T, 1, H, W);
+  grey.rgb.assign(grey.bev.begin(), grey.bev.end());
+  grey.bev.clear();
+  EXPECT_THROW(write_episode(path("grey.h5"), make_meta(1), grey), DataError);
+  EXPECT_FALSE(fs::exists(path("both.h5")) || fs::exists(path("grey.h5")));
 }
 
 }  // namespace

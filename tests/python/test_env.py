@@ -104,6 +104,36 @@ class DrivingEnvTest(TempDirCase):
         finally:
             env.close()
 
+    def test_camera_view_is_what_collect_records(self):
+        """sense.view = "camera": the observation's frame is obs["camera"], uint8 (3, H, W) RGB,
+        and it is, step by step, the "frames" dataset `collect` records for the same seed."""
+        config = write_config(self.dir, "regular")
+        with open(config, "a") as f:
+            f.write("[sense]\nview = \"camera\"\n[sense.camera]\nwidth = 64\nheight = 24\n")
+        out = os.path.join(self.dir, "data")
+        cli("collect", "--config", config, "--episodes", 1, "--seed", 11, "--out", out)
+        path = sorted(glob.glob(os.path.join(out, "*.h5")))[0]
+        with h5py.File(path, "r") as f:
+            self.assertNotIn("bev", f)
+            frames, held, seed = f["frames"][()], f["noise"][()], int(f.attrs["seed"])
+        self.assertEqual(frames.shape[1:], (3, 24, 64))
+        with causaldrive.make("town-a", config=config) as env:
+            self.assertEqual(env.view, "camera")
+            self.assertEqual(env.channel_names, ["red", "green", "blue"])
+            self.assertNotIn("bev", env.observation_space.spaces)
+            self.assertEqual(env.observation_space["camera"].shape, (3, 24, 64))
+            obs, info = env.reset(seed=seed)
+            self.assertIn(obs, env.observation_space)
+            self.assertGreater(len(np.unique(obs["camera"])), 16)  # shaded RGB, not 0/255
+            for t in range(min(40, len(frames))):
+                np.testing.assert_array_equal(obs["camera"], frames[t], err_msg="frame %d" % t)
+                act = info["expert_action"].copy()
+                if held[t]:
+                    act[0], act[1] = 0.0, 1.0
+                obs, _, terminated, truncated, info = env.step(act)
+                if terminated or truncated:
+                    break
+
     def test_free_steering(self):
         """ego.lateral = "free" (the default): the action gains steer, the expert's steer keeps
         the lane, and a hard right turn leaves the road (the episode ends as offroad)."""

@@ -129,5 +129,54 @@ TEST(WorldCamera, ACarThatBrakesLightsItsBrakeLights) {
   EXPECT_TRUE(done) << "no task started on a lane long enough";
 }
 
+// sense.view = "camera": the World's frames are the front camera's (3 x H x W, named red, green,
+// blue), the bytes a CameraRenderer draws of camera_scene(); render_from a pose 1.5 m to the
+// side draws another picture, the same as the renderer's of that pose; a BEV world's frames
+// stay the BEV's. The camera offers no bit planes.
+TEST(WorldCamera, TheCameraViewRendersTheFrontCamera) {
+  CD_NEEDS_SUMO();
+  Settings s = empty_town();
+  s.view = "camera";
+  s.camera.width = 96;
+  s.camera.height = 32;
+  World w(s);
+  const FrameFormat& f = w.frame_format();
+  EXPECT_TRUE(w.camera_view());
+  EXPECT_EQ(f.view, "camera");
+  EXPECT_EQ(f.channels, 3);
+  EXPECT_EQ(f.height, 32);
+  EXPECT_EQ(f.width, 96);
+  EXPECT_EQ(f.bytes(), 3u * 32 * 96);
+  EXPECT_EQ(f.channel_names, camera_channel_names());
+  w.reset(w.sample_task(3, 100, 200));
+  for (int i = 0; i < 20; ++i) w.step(Control{0.5, 0.0});
+  std::vector<uint8_t> frame(f.bytes()), oracle(f.bytes()), moved(f.bytes());
+  w.render(frame.data());
+  CameraRenderer camera(w.map(), s.camera);
+  CameraScene scene = w.camera_scene();
+  camera.render(scene, oracle.data());
+  EXPECT_EQ(frame, oracle);
+  const Pose2 seen = shifted_pose(w.ego().pose, 1.5, 0.0);
+  w.render_from(seen, moved.data());
+  EXPECT_NE(moved, frame);
+  scene.ego = seen;
+  camera.render(scene, oracle.data());
+  EXPECT_EQ(moved, oracle);
+  std::vector<uint8_t> packed(f.pixels());
+  EXPECT_THROW(w.render_packed(packed.data()), std::logic_error);
+}
+
+TEST(WorldCamera, TheDefaultViewIsTheBev) {
+  CD_NEEDS_SUMO();
+  const Settings s = empty_town();
+  EXPECT_EQ(s.view, "bev");
+  World w(s);
+  EXPECT_FALSE(w.camera_view());
+  EXPECT_EQ(w.frame_format().view, "bev");
+  EXPECT_EQ(w.frame_format().channels, static_cast<int>(kBevChannelCount));
+  EXPECT_EQ(w.frame_format().height, s.bev.height);
+  EXPECT_EQ(w.frame_format().metres_per_pixel, s.bev.metres_per_pixel);
+}
+
 }  // namespace
 }  // namespace cd

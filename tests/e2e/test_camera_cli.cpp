@@ -1,0 +1,111 @@
+// needs: sumo
+// The front camera through the binary (sense.view = "camera", SPEC section 16): collect records
+// the camera's RGB frames as the HDF5 dataset "frames" (T, 3, H, W) uint8, chunked and deflated,
+// which h5py reads; bc-oh trains on them and drives in the simulator, with the same bytes
+// whatever the worker count; an evaluation with the BEV refuses the camera's checkpoint (and
+// the other way round) in one line, as it refuses the BEV's perception noise on the camera.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "../support/tiny_run.hpp"
+
+#ifndef CD_PYTHON
+#define CD_PYTHON "/usr/bin/python3"
+#endif
+
+namespace cd {
+namespace {
+
+using nlohmann::json;
+
+// A small camera (the default is 288 x 80) keeps the tiny run quick.
+const std::string kCamera =
+    "\n[sense]\nview = \"camera\"\n\n[sense.camera]\nwidth = 96\nheight = 32\n";
+const std::string kTrain = "\n[train]\nepochs = 1\nmax_samples = 200\nthreads = 1\n"
+                           "\n[ego]\nlateral = \"route\"\n";
+
+TEST(CameraView, CollectTrainEvalAndTheViewOfACheckpoint) {
+  CD_NEEDS_SUMO();
+  test::TinyRun run({.method = "bc-oh",
+                     .traffic = "regular",
+                     .extra = kCamera + kTrain,
+                     .suite = {.traffic = "empty", .scenarios = {"route"}}});
+
+  // The recorded frames, read by h5py: "frames" in place of "bev", RGB that is not only 0/255
+  // (the BEV's values), one frame per chunk, deflated, the view in the attributes.
+  const std::string first = run.data() + "/episode_000000.h5";
+  const std::string oracle = run.dir() / "oracle.py";
+  test::write_text(oracle, R"PY(
+import sys
+import h5py
+import numpy as np
+with h5py.File(sys.argv[1], "r") as f:
+    assert "bev" not in f and "frames" in f, sorted(f.keys())
+    x = f["frames"]
+    T = f["speed"].shape[0]
+    assert x.dtype == np.uint8 and x.shape == (T, 3, 32, 96), (x.dtype, x.shape)
+    assert x.chunks == (1, 3, 32, 96) and x.compression == "gzip", (x.chunks, x.compression)
+    v = x[...]
+    assert len(np.unique(v)) > 16, "RGB shading, not 0/255 planes"
+    assert v[:, :, :8, :].mean() > v[:, :, -8:, :].mean() - 255, "an image"
+    names = [n.decode() if isinstance(n, bytes) else str(n) for n in f.attrs["channels"]]
+    assert names == ["red", "green", "blue"], names
+    view = f.attrs["view"]
+    assert (view.decode() if isinstance(view, bytes) else str(view)) == "camera", view
+)PY");
+  const test::CommandResult py =
+      test::run_command({CD_PYTHON, oracle, first});
+  ASSERT_TRUE(py.exited && py.exit_code == 0) << py.describe();
+
+  // The checkpoint records the camera's input; its agent drives, the same bytes at 1 and 2
+  // workers.
+  const json input = test::read_json(run.run() + "/checkpoint.json")["input"];
+  EXPECT_EQ(input["channels"], 3);
+  EXPECT_EQ(input["height"], 32);
+  EXPECT_EQ(input["width"], 96);
+  EXPECT_EQ(input["channel_names"], json({"red", "green", "blue"}));
+  run.eval("one", 1);
+  run.eval("two", 2);
+  const json res = run.results("one");
+  ASSERT_EQ(res["episodes"].size(), 1u);
+  EXPECT_EQ(res["summary"]["infrastructure_failures"], 0);
+  EXPECT_EQ(test::read_text(run.dir() / "one/results.json"),
+            test::read_text(run.dir() / "two/results.json"));
+
+  // The BEV's world refuses the camera's checkpoint, naming both views.
+  const std::string bev = test::write_test_config(run.dir(), "empty", kTrain, "bev.toml");
+  test::CommandResult r =
+      test::run_cli(test::eval_args(bev, "bc-oh", run.run(), run.suite(), run.dir() / "bev", 1));
+  test::expect_one_line_error(r, "was trained on camera frames (3x32x96)");
+  EXPECT_NE(r.err.find("renders bev frames"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(run.dir() / "bev/results.json"));
+
+  // The BEV's perception noise is not the camera's condition.
+  r = test::run_cli(test::with(
+      test::eval_args(run.config(), "bc-oh", run.run(), run.suite(), run.dir() / "shifted", 1),
+      {"--sensor", "shifted"}));
+  test::expect_one_line_error(r, "held-out weather");
+  EXPECT_FALSE(std::filesystem::exists(run.dir() / "shifted/results.json"));
+}
+
+TEST(CameraView, ABevCheckpointIsRefusedByTheCamera) {
+  CD_NEEDS_SUMO();
+  test::TinyRun run({.method = "bc-so",
+                     .traffic = "empty",
+                     .extra = kTrain,
+                     .suite = {.traffic = "empty", .scenarios = {"route"}}});
+  const std::string camera =
+      test::write_test_config(run.dir(), "empty", kTrain + kCamera, "camera.toml");
+  const test::CommandResult r = test::run_cli(
+      test::eval_args(camera, "bc-so", run.run(), run.suite(), run.dir() / "camera", 1));
+  test::expect_one_line_error(r, "was trained on bev frames");
+  EXPECT_NE(r.err.find("renders camera frames (3x32x96"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(run.dir() / "camera/results.json"));
+}
+
+}  // namespace
+}  // namespace cd
