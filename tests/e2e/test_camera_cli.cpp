@@ -1,7 +1,7 @@
 // needs: sumo
 // The front camera through the binary (sense.view = "camera", SPEC section 16): collect records
 // the camera's RGB frames as the HDF5 dataset "frames" (T, 3, H, W) uint8, chunked and deflated,
-// which h5py reads; bc-oh trains on them and drives in the simulator, with the same bytes
+// which h5py reads, the same bytes for the same seed; bc-oh trains on them and drives in the simulator, with the same bytes
 // whatever the worker count; an evaluation with the BEV refuses the camera's checkpoint (and
 // the other way round) in one line, as it refuses the BEV's perception noise on the camera.
 #include <gtest/gtest.h>
@@ -60,6 +60,11 @@ with h5py.File(sys.argv[1], "r") as f:
   const test::CommandResult py =
       test::run_command({CD_PYTHON, oracle, first});
   ASSERT_TRUE(py.exited && py.exit_code == 0) << py.describe();
+  // Same seed, same bytes.
+  test::run_cli_ok(test::collect_args(run.config(), run.dir() / "again"));
+  for (const char* f : {"episode_000000.h5", "episode_000001.h5"})
+    EXPECT_EQ(test::read_text(run.data() + "/" + f), test::read_text(run.dir() / (std::string("again/") + f)))
+        << f;
 
   // The checkpoint records the camera's input; its agent drives, the same bytes at 1 and 2
   // workers.

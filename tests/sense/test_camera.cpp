@@ -274,6 +274,54 @@ TEST(CameraRender, SameSceneSameBytesAndTheWeatherChangesThem) {
   EXPECT_EQ(b.bytes(), render(wet, scene).bytes());
 }
 
+// The pixels a scene's road users cover: where the frame differs from the same camera's frame
+// of the empty road.
+std::vector<bool> covered(CameraRenderer& renderer, const CameraScene& scene) {
+  CameraScene empty;
+  empty.ego = scene.ego;
+  const Frame with = render(renderer, scene), without = render(renderer, empty);
+  const CameraConfig& c = renderer.config();
+  std::vector<bool> mask(size_t(c.width) * c.height);
+  for (int row = 0; row < c.height; ++row)
+    for (int col = 0; col < c.width; ++col) {
+      const Pixel a = with.at(row, col), b = without.at(row, col);
+      mask[size_t(row) * c.width + col] = a.r != b.r || a.g != b.g || a.b != b.b;
+    }
+  return mask;
+}
+
+TEST(CameraRender, AWeatherChangesTheColoursButNotWhereAnythingIs) {
+  RoadMap none;
+  CameraScene scene = car_ahead();
+  scene.vehicles.push_back(red_car({25, -4}));
+  scene.lights.push_back({{20, 6}, M_PI, 'g'});
+  CameraRenderer noon(none, config());
+  const std::vector<bool> at_noon = covered(noon, scene);
+  const long n = std::count(at_noon.begin(), at_noon.end(), true);
+  EXPECT_GT(n, 200) << "two cars and a signal head in view";
+  for (const char* name : {"wet-noon", "hard-rain-noon", "clear-sunset", "soft-rain-sunset",
+                           "after-rain-dusk"}) {
+    CameraConfig c = config();
+    c.weather = name;
+    CameraRenderer other(none, c);
+    EXPECT_NE(render(other, scene).bytes(), render(noon, scene).bytes()) << name;
+    EXPECT_EQ(covered(other, scene), at_noon) << name << ": the same pixels are covered";
+  }
+}
+
+TEST(CameraRender, AVehicleBehindTheCameraNeverShows) {
+  RoadMap none;
+  CameraRenderer renderer(none, config());
+  CameraScene scene;
+  scene.ego = Pose2{{0, 0}, 0.0};  // the camera at x = 0.8, looking east
+  // Behind it: just behind the lens, farther back, beside and behind, and a signal head.
+  for (Vec2 at : {Vec2{-2.5, 0}, Vec2{-12, 0}, Vec2{-6, 3.5}, Vec2{-30, -4}})
+    scene.vehicles.push_back(red_car(at));
+  scene.lights.push_back({{-8, 3}, 0.0, 'r'});
+  const std::vector<bool> mask = covered(renderer, scene);
+  EXPECT_EQ(std::count(mask.begin(), mask.end(), true), 0);
+}
+
 TEST(CameraWeathers, FourTrainTwoHeldOutAndUnknownNamesAreOneLine) {
   int held = 0;
   for (const CameraWeather& w : camera_weathers()) held += w.held_out;
