@@ -1,12 +1,17 @@
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <memory>
 #include <vector>
 
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
 #include "core/error.hpp"
+#include "collect/expert_episode.hpp"
 #include "core/png.hpp"
+#include "expert/autopilot.hpp"
+#include "sense/bev_colour.hpp"
 #include "world/town.hpp"
 #include "world/world.hpp"
 
@@ -77,6 +82,59 @@ void write_camera_preview(const Settings& settings, const std::string& png) {
   std::printf("camera preview of %d places -> %s\n", tiles, png.c_str());
 }
 
+// Copies a w x h RGB image (interleaved rows) into a canvas of width cw at (x0, y0), each pixel
+// drawn as a scale x scale square.
+void blit(std::vector<uint8_t>& canvas, int cw, const std::vector<uint8_t>& img, int w, int h,
+          int x0, int y0, int scale = 1) {
+  for (int y = 0; y < h * scale; ++y)
+    for (int x = 0; x < w * scale; ++x)
+      for (int c = 0; c < 3; ++c)
+        canvas[(size_t(y0 + y) * cw + x0 + x) * 3 + c] =
+            img[(size_t(y / scale) * w + x / scale) * 3 + c];
+}
+
+// One moment of the live world (the expert driving collect's task of `seed` in the config's
+// traffic, `steps` steps in): the BEV (2x) beside the front camera in each of `weathers`,
+// stacked, in one PNG.
+void write_moment_preview(const Settings& settings, const std::string& png, uint64_t seed,
+                          int steps, const std::vector<std::string>& weathers) {
+  if (weathers.empty()) throw ConfigError("town --weathers: name at least one weather");
+  World world(settings);
+  std::vector<std::unique_ptr<CameraRenderer>> cameras;
+  for (const std::string& w : weathers) {
+    CameraConfig c = settings.camera;
+    c.weather = w;
+    check_camera_config(c);
+    cameras.push_back(std::make_unique<CameraRenderer>(world.map(), c));
+  }
+  world.reset(collect_task(world, settings.collect, episode_seed(settings.collect.seed, int(seed))));
+  const Autopilot expert(settings.expert);
+  StepResult r;
+  for (int i = 0; i < steps && r.outcome == Outcome::Running; ++i) r = world.step(expert.act(world));
+  const BevConfig& bc = world.renderer().config();
+  std::vector<uint8_t> bev(world.renderer().frame_bytes());
+  world.renderer().render(world.scene(), bev.data());
+  const std::vector<uint8_t> bev_rgb = bev_colour(bev.data(), kBevChannelCount, bc.height, bc.width);
+  const int gap = 4, CW = settings.camera.width, CH = settings.camera.height;
+  const int n = static_cast<int>(weathers.size());
+  const int width = 2 * bc.width + gap + CW;
+  const int height = std::max(2 * bc.height, n * CH + (n - 1) * gap);
+  std::vector<uint8_t> canvas(size_t(width) * height * 3, 255);
+  blit(canvas, width, bev_rgb, bc.width, bc.height, 0, 0, 2);
+  std::vector<uint8_t> frame(cameras.front()->frame_bytes());
+  const CameraScene scene = world.camera_scene();
+  for (int k = 0; k < n; ++k) {
+    cameras[static_cast<size_t>(k)]->render(scene, frame.data());
+    std::vector<uint8_t> rgb;
+    append_rgb_rows(frame.data(), CH, CW, rgb);
+    blit(canvas, width, rgb, CW, CH, 2 * bc.width + gap, k * (CH + gap));
+  }
+  write_png_rgb(png, canvas, width, height);
+  std::printf("%s at %.1f s of episode seed %llu: BEV beside the camera in %d weather(s) -> %s\n",
+              network_label(settings.world.town).c_str(), world.time(),
+              static_cast<unsigned long long>(seed), n, png.c_str());
+}
+
 }  // namespace
 
 void add_town(CLI::App& app) {
@@ -93,6 +151,19 @@ void add_town(CLI::App& app) {
   auto camera_preview = std::make_shared<std::string>();
   sub->add_option("--camera-preview", *camera_preview,
                   "write a PNG of the front camera ([sense.camera]) at the same places");
+  auto moment = std::make_shared<std::string>();
+  sub->add_option("--moment-preview", *moment,
+                  "write a PNG of one moment of the live world (the expert driving a collect "
+                  "task): its BEV beside the front camera in each of --weathers");
+  auto weathers = std::make_shared<std::vector<std::string>>(
+      std::vector<std::string>{"clear-noon", "soft-rain-sunset"});
+  sub->add_option("--weathers", *weathers, "--moment-preview's weathers (default: clear-noon "
+                  "soft-rain-sunset)");
+  auto seed = std::make_shared<uint64_t>(0);
+  sub->add_option("--episode", *seed, "--moment-preview's collect episode (default 0)");
+  auto steps = std::make_shared<int>(150);
+  sub->add_option("--steps", *steps, "--moment-preview's steps into the episode (default 150)")
+      ->check(CLI::NonNegativeNumber);
   sub->add_option("--config,-c", *config, "TOML config for the BEV settings");
   sub->add_flag("--list", *list, "list the built-in towns");
   sub->callback([=] {
@@ -124,6 +195,12 @@ void add_town(CLI::App& app) {
         throw ConfigError("town --camera-preview needs exactly one town name or --net FILE");
       s.world.town = targets.front();
       write_camera_preview(s, *camera_preview);
+    }
+    if (!moment->empty()) {
+      if (targets.size() != 1)
+        throw ConfigError("town --moment-preview needs exactly one town name or --net FILE");
+      s.world.town = targets.front();
+      write_moment_preview(s, *moment, *seed, *steps, *weathers);
     }
   });
 }
