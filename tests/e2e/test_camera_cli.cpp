@@ -112,5 +112,30 @@ TEST(CameraView, ABevCheckpointIsRefusedByTheCamera) {
   EXPECT_FALSE(std::filesystem::exists(run.dir() / "camera/results.json"));
 }
 
+// town --moment-preview: the BEV (2x) beside the camera in each weather, one PNG whose size
+// follows from the settings; an unknown weather is one line.
+TEST(CameraView, MomentPreviewDrawsTheBevBesideEachWeather) {
+  CD_NEEDS_SUMO();
+  test::TempDir dir("cdtest-moment");
+  const std::string config = test::write_test_config(dir, "regular", kCamera, "moment.toml");
+  const std::string png = dir / "moment.png";
+  test::run_cli_ok({"town", "town-a", "--config", config, "--moment-preview", png, "--steps", "5",
+                    "--weathers", "clear-noon", "wet-noon", "after-rain-dusk"});
+  const std::string bytes = test::read_text(png);
+  ASSERT_GT(bytes.size(), 24u);
+  auto be32 = [&](size_t at) {
+    return (uint32_t(uint8_t(bytes[at])) << 24) | (uint32_t(uint8_t(bytes[at + 1])) << 16) |
+           (uint32_t(uint8_t(bytes[at + 2])) << 8) | uint32_t(uint8_t(bytes[at + 3]));
+  };
+  EXPECT_EQ(bytes.substr(1, 3), "PNG");
+  EXPECT_EQ(be32(16), 2u * 64 + 4 + 96) << "width: the BEV at 2x, a gap, the camera";
+  EXPECT_EQ(be32(20), 2u * 64) << "height: the taller of the BEV (128) and 3 x 32 + 2 gaps";
+  const test::CommandResult r =
+      test::run_cli({"town", "town-a", "--config", config, "--moment-preview", dir / "bad.png",
+                     "--weathers", "moonlight"});
+  test::expect_one_line_error(r, "moonlight");
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad.png"));
+}
+
 }  // namespace
 }  // namespace cd
