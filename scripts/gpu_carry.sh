@@ -22,7 +22,7 @@ mkdir -p .gpu/debs
   libhdf5-hl-cpp-100 libaec-dev libaec0 libsz2 libcurl4 libbrotli1 libffi8 libgmp10 libgnutls30 \
   libgssapi-krb5-2 libhogweed6 libidn2-0 libk5crypto3 libkrb5-3 libkrb5support0 libldap-2.5-0 \
   libnettle8 libnghttp2-14 libp11-kit0 libpsl5 librtmp1 libsasl2-2 libssh2-1 libssl3 \
-  libtasn1-6 libunistring2 libzstd1 libcom-err2 libkeyutils1 zlib1g \
+  libtasn1-6 libunistring2 libzstd1 libcom-err2 libkeyutils1 zlib1g zlib1g-dev \
   libtomlplusplus-dev libtomlplusplus3 libcli11-dev nlohmann-json3-dev libeigen3-dev \
   libstb-dev libstb0 libgtest-dev >/dev/null)
 if [[ -n "$data" ]]; then

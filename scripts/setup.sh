@@ -9,7 +9,7 @@ packages=(
   sumo sumo-tools
   libtorch-dev libopenblas0-openmp
   libeigen3-dev libboost-math-dev
-  libhdf5-dev
+  libhdf5-dev zlib1g-dev
   libtomlplusplus-dev libcli11-dev nlohmann-json3-dev
   libstb-dev
   libmujoco-dev libosmesa6-dev

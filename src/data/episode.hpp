@@ -36,6 +36,11 @@ struct EpisodeData {
   // The front camera's frames (sense.view = "camera"): T*3*H*W RGB bytes, dataset "frames" of
   // the file. When it holds the frames, bev and bev_packed are empty.
   FrameBytes rgb;
+  // The same frames as stored in the file, when read so (read_episode's deflated_camera): frame
+  // t is the zlib stream rgb_deflated[rgb_offsets[t] .. rgb_offsets[t + 1]) of frame_bytes()
+  // bytes; rgb is then empty. What training holds in memory (datasets/episode_set).
+  std::vector<uint8_t> rgb_deflated;
+  std::vector<uint64_t> rgb_offsets;  // T + 1
   std::vector<float> speed;      // T, m/s
   std::vector<float> action;     // T*action_dim, the expert's action (the label)
   std::vector<int32_t> command;  // T
@@ -56,11 +61,16 @@ struct EpisodeData {
   std::map<std::string, std::vector<float>> causes;
 
   size_t frames() const { return speed.size(); }
-  bool camera() const { return !rgb.empty(); }
+  bool camera() const { return !rgb.empty() || !rgb_offsets.empty(); }
   size_t frame_bytes() const { return static_cast<size_t>(channels) * height * width; }
   size_t frame_pixels() const { return static_cast<size_t>(height) * width; }
   // Frame t as C planes, whichever representation holds it; out has frame_bytes() bytes.
   void frame_planes(size_t t, uint8_t* out) const;
 };
+
+// Inflates one zlib stream of `n` bytes into exactly `out_bytes` bytes at out; DataError naming
+// `what` when it is damaged or of another size.
+void inflate_frame(const uint8_t* in, size_t n, uint8_t* out, size_t out_bytes,
+                   const std::string& what);
 
 }  // namespace cd

@@ -70,6 +70,7 @@ void validate(const EpisodeMeta& meta, const EpisodeData& data) {
           std::to_string(want) + " for " + std::to_string(frames) + " frames");
     }
   };
+  if (!data.rgb_offsets.empty()) bad("frames held as stored (rgb_deflated) are read-only");
   if (data.camera()) {
     if (!data.bev.empty() || !data.bev_packed.empty()) bad("both rgb and bev hold frames");
     if (data.channels != 3) bad("rgb frames have 3 channels, not " + std::to_string(data.channels));
@@ -189,13 +190,56 @@ EpisodeMeta read_meta(hid_t root) {
   return meta;
 }
 
-EpisodeData read_data(hid_t root, const EpisodeMeta& meta) {
+// The frames of dataset `name` as stored, one deflate stream per frame, when it is chunked one
+// frame per chunk with the deflate filter alone (what write_episode makes); false otherwise,
+// with nothing read.
+bool read_stored_frames(hid_t root, const char* name, const std::vector<hsize_t>& dims,
+                        std::vector<uint8_t>& bytes, std::vector<uint64_t>& offsets) {
+  const std::string what = std::string("cannot read the chunks of '") + name + "'";
+  H5Id dset(check_id(H5Dopen2(root, name, H5P_DEFAULT), what), H5Dclose);
+  H5Id dcpl(check_id(H5Dget_create_plist(dset.get()), what), H5Pclose);
+  hsize_t chunk[4] = {0, 0, 0, 0};
+  if (H5Pget_layout(dcpl.get()) != H5D_CHUNKED || H5Pget_chunk(dcpl.get(), 4, chunk) != 4 ||
+      chunk[0] != 1 || chunk[1] != dims[1] || chunk[2] != dims[2] || chunk[3] != dims[3] ||
+      H5Pget_nfilters(dcpl.get()) != 1)
+    return false;
+  unsigned flags = 0, config = 0;
+  size_t values = 0;
+  char filter_name[32];
+  if (H5Pget_filter2(dcpl.get(), 0, &flags, &values, nullptr, sizeof filter_name, filter_name,
+                     &config) != H5Z_FILTER_DEFLATE)
+    return false;
+  bytes.clear();
+  offsets.assign(1, 0);
+  for (hsize_t t = 0; t < dims[0]; ++t) {
+    const hsize_t at[4] = {t, 0, 0, 0};
+    hsize_t size = 0;
+    check(H5Dget_chunk_storage_size(dset.get(), at, &size), what);
+    const size_t start = bytes.size();
+    bytes.resize(start + size);
+    uint32_t skipped = 0;  // a bit per filter the chunk was stored without
+    check(H5Dread_chunk(dset.get(), H5P_DEFAULT, at, &skipped, bytes.data() + start), what);
+    if (skipped != 0) {
+      bytes.clear();
+      offsets.clear();
+      return false;
+    }
+    offsets.push_back(bytes.size());
+  }
+  return true;
+}
+
+EpisodeData read_data(hid_t root, const EpisodeMeta& meta, bool deflated_camera) {
   EpisodeData data;
   // The frames: the BEV's "bev", or the front camera's "frames" (RGB).
   const bool camera = !has_link(root, "bev", "dataset 'bev'") &&
                       has_link(root, "frames", "dataset 'frames'");
   const char* frames_name = camera ? "frames" : "bev";
-  auto bev = read_dataset<uint8_t>(root, frames_name, frames_name, H5T_NATIVE_UINT8, H5T_INTEGER, 4);
+  auto bev = read_dataset<uint8_t>(root, frames_name, frames_name, H5T_NATIVE_UINT8, H5T_INTEGER, 4,
+                                   !(camera && deflated_camera));
+  if (camera && deflated_camera && bev.dims[1] == 3 &&
+      !read_stored_frames(root, frames_name, bev.dims, data.rgb_deflated, data.rgb_offsets))
+    bev = read_dataset<uint8_t>(root, frames_name, frames_name, H5T_NATIVE_UINT8, H5T_INTEGER, 4);
   if (camera && bev.dims[1] != 3)
     throw Failure("dataset 'frames' should have 3 channels (RGB), has " + std::to_string(bev.dims[1]));
   auto speed = read_dataset<float>(root, "speed", "speed", H5T_NATIVE_FLOAT, H5T_FLOAT, 1);
@@ -259,7 +303,8 @@ EpisodeData read_data(hid_t root, const EpisodeMeta& meta) {
   data.height = dim_as_int(bev.dims[2], frames_name);
   data.width = dim_as_int(bev.dims[3], frames_name);
   data.action_dim = dim_as_int(action.dims[1], "action");
-  (camera ? data.rgb : data.bev).assign(bev.values.begin(), bev.values.end());
+  if (data.rgb_offsets.empty())
+    (camera ? data.rgb : data.bev).assign(bev.values.begin(), bev.values.end());
   data.speed = std::move(speed.values);
   data.action = std::move(action.values);
   data.command = std::move(command.values);
@@ -295,11 +340,11 @@ void write_episode(const std::string& path, const EpisodeMeta& meta, const Episo
   write_atomically(path, [&](const std::string& tmp) { write_file(tmp, meta, data); });
 }
 
-EpisodeData read_episode(const std::string& path, EpisodeMeta* meta) {
+EpisodeData read_episode(const std::string& path, EpisodeMeta* meta, bool deflated_camera) {
   return guarded_read(path, [&] {
     H5Id file = open_for_reading(path);
     EpisodeMeta m = read_meta(file.get());
-    EpisodeData data = read_data(file.get(), m);
+    EpisodeData data = read_data(file.get(), m, deflated_camera);
     if (meta != nullptr) *meta = std::move(m);
     return data;
   });

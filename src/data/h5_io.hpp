@@ -161,9 +161,10 @@ struct Array {
   std::vector<T> values;
 };
 
+// The dataset's dims and (with read_values) its values, checked for type class and rank.
 template <typename T>
 Array<T> read_dataset(hid_t loc, const std::string& name, const std::string& label, hid_t mem_type,
-                      H5T_class_t expected, int rank) {
+                      H5T_class_t expected, int rank, bool read_values = true) {
   require_link(loc, name, "dataset '" + label + "'");
   H5Id dset(check_id(H5Dopen2(loc, name.c_str(), H5P_DEFAULT), "cannot open '" + label + "'"),
             H5Dclose);
@@ -186,6 +187,7 @@ Array<T> read_dataset(hid_t loc, const std::string& name, const std::string& lab
     }
     count *= static_cast<size_t>(d);
   }
+  if (!read_values) return out;
   out.values.resize(count);
   if (count > 0) {
     check(H5Dread(dset.get(), mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.values.data()),

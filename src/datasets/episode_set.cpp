@@ -13,14 +13,33 @@ namespace cd {
 
 namespace fs = std::filesystem;
 
+size_t EpisodeSet::frame_memory() const {
+  size_t n = 0;
+  for (const auto& e : episodes) n += e.frame_data.size() + e.frame_offsets.size() * sizeof(uint64_t);
+  return n;
+}
+
 long EpisodeSet::total_frames() const {
   long n = 0;
   for (const auto& e : episodes) n += e.frames;
   return n;
 }
 
+// Frame t of episode e as stored in memory: a pointer into frame_data, or, for frames held as
+// stored in the file, the frame inflated into this thread's buffer.
+const uint8_t* EpisodeSet::stored_frame(int e, int t) const {
+  const PackedEpisode& ep = episodes[e];
+  if (ep.frame_offsets.empty()) return ep.frame_data.data() + static_cast<size_t>(t) * stored_frame_bytes();
+  thread_local std::vector<uint8_t> buffer;
+  buffer.resize(stored_frame_bytes());
+  const uint64_t from = ep.frame_offsets[t], to = ep.frame_offsets[t + 1];
+  inflate_frame(ep.frame_data.data() + from, to - from, buffer.data(), buffer.size(),
+                ep.file + " frame " + std::to_string(t));
+  return buffer.data();
+}
+
 void EpisodeSet::planes01(int e, int t, float* out) const {
-  const uint8_t* p = episodes[e].frame_data.data() + static_cast<size_t>(t) * stored_frame_bytes();
+  const uint8_t* p = stored_frame(e, t);
   if (layout == FrameLayout::Bytes) return frame_bytes_to_unit(layout, p, frame_values(), out);
   const size_t n = frame_pixels();
   for (int c = 0; c < channels; ++c) {
@@ -30,7 +49,7 @@ void EpisodeSet::planes01(int e, int t, float* out) const {
 }
 
 void EpisodeSet::planes255(int e, int t, uint8_t* out) const {
-  const uint8_t* p = episodes[e].frame_data.data() + static_cast<size_t>(t) * stored_frame_bytes();
+  const uint8_t* p = stored_frame(e, t);
   if (layout == FrameLayout::Bytes) {
     std::copy_n(p, frame_values(), out);
     return;
@@ -65,7 +84,10 @@ PackedEpisode pack(const std::string& path, const EpisodeData& d) {
   p.file = fs::path(path).filename().string();
   p.frames = static_cast<int>(d.frames());
   const size_t pixels = d.frame_pixels();
-  if (d.camera()) {
+  if (!d.rgb_offsets.empty()) {  // RGB as stored in the file: inflated when read
+    p.frame_data = d.rgb_deflated;
+    p.frame_offsets = d.rgb_offsets;
+  } else if (d.camera()) {
     p.frame_data.assign(d.rgb.begin(), d.rgb.end());  // RGB bytes as recorded (FrameLayout::Bytes)
   } else if (!d.bev_packed.empty()) {
     p.frame_data.assign(d.bev_packed.begin(), d.bev_packed.end());
@@ -146,7 +168,7 @@ void add_episode(EpisodeSet& set, const std::string& path, bool keep_full_path) 
     EpisodeMeta meta;
     EpisodeData d;
     try {
-      d = read_episode(path, &meta);
+      d = read_episode(path, &meta, /*deflated_camera=*/true);
     } catch (const Error& e) {
       rethrow(e);
     }

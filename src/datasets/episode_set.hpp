@@ -29,7 +29,10 @@ inline void frame_bytes_to_unit(FrameLayout layout, const uint8_t* in, size_t n,
 struct PackedEpisode {
   std::string file;              // file name inside the folder
   int frames = 0;                // T
-  std::vector<uint8_t> frame_data;  // BitPlanes: T*H*W; Bytes: T*C*H*W
+  std::vector<uint8_t> frame_data;  // BitPlanes: T*H*W; Bytes: T*C*H*W, or as stored (below)
+  // The camera's frames as stored in the file (data/episode.hpp's rgb_deflated): frame t is the
+  // zlib stream frame_data[frame_offsets[t] .. frame_offsets[t + 1]). Empty: frames as above.
+  std::vector<uint64_t> frame_offsets;
   std::vector<float> speed;      // T, m/s (MuJoCo: zeros, the domain has no ego speed)
   std::vector<float> action;     // T*A: the expert's label (driving: throttle, brake)
   std::vector<int32_t> command;  // T, cd::Command (MuJoCo: zeros)
@@ -80,6 +83,12 @@ struct EpisodeSet {
   // bytes as recorded); `out` holds frame_values() values.
   void planes01(int e, int t, float* out) const;
   void planes255(int e, int t, uint8_t* out) const;
+  // Bytes the frames take in memory (camera frames are held as stored in the file: ~2 kB a
+  // frame at 288 x 80 where the raw frame is 69 kB).
+  size_t frame_memory() const;
+
+ private:
+  const uint8_t* stored_frame(int e, int t) const;
 };
 
 // The episode_*.h5 files of `dir`, sorted, as full paths. Throws DataError when the folder is

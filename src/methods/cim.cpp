@@ -836,6 +836,9 @@ TrainSummary train_cim(const Settings& settings_in, const TrainRequest& req) {
   const std::string& device_name = dev.name;
 
   const EpisodeSet eps = load_episode_set(req.data_dir);
+  if (eps.layout != FrameLayout::BitPlanes)
+    throw ConfigError(req.method + " trains on BEV data (its VAE sees a grey view of the BEV's "
+                      "layers); " + req.data_dir + " holds RGB frames (sense.view = \"camera\")");
   const GreyView view = resolve_view(s.vae.view, eps.channel_names, eps.height, eps.width);
   const CimRunInfo* source = init_run ? &*init_run : vae_run ? &*vae_run : nullptr;
   if (source) check_same_input(*source, eps, init_run ? "--init" : "--vae");
