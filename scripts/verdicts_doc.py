@@ -131,6 +131,46 @@ def rows():
     return out
 
 
+def runs_section():
+    """Section 10 of the protocol, every run reported: the tuning evaluations kept so far and
+    each kept training run of section 7 with its data folder and device."""
+    val = os.path.join(ROOT, "results", "residual_paper", "recipe", "eval")
+    variants = ["old", "signed", "hold-balanced", "signed-hold-balanced"]
+    methods = ["residual", "bc-oh", "keyframe", "dagger", "bc-so", "hd", "fca"]
+    tuned = []
+    for m in methods:
+        done = [v for v in variants
+                if all(os.path.exists(os.path.join(val, v, "seed0", m, k, "results.json"))
+                       for k in ("regular", "dense"))]
+        tuned.append("%s %d/4" % (m, len(done)))
+    lines = ["", "## Runs of the protocol so far", "",
+             "Every run is listed (protocol section 10), generated from the kept results.", "",
+             "- **Tuning** (section 6, seed 0, validation suites; variants evaluated of four): " +
+             ", ".join(tuned) + ". The choices: `results/verdicts/tuning.md` "
+             "(`scripts/verdicts.sh choose`).",
+             "- **Training** (section 7), the kept runs:", "",
+             "| method | seed | data | device | libtorch | best epoch of | validation loss |",
+             "|---|---:|---|---|---|---|---:|"]
+    runs = []
+    for path in glob.glob(os.path.join(ROOT, "results", "verdicts", "train", "seed*", "*",
+                                       "checkpoint.json")):
+        ck = json.load(open(path))
+        seed = int(os.path.basename(os.path.dirname(os.path.dirname(path)))[4:])
+        method = os.path.basename(os.path.dirname(path))
+        rt = ck.get("runtime", {})
+        runs.append((methods.index(method) if method in methods else 99, seed, method,
+                     "D%d" % (seed % 2 + 1), rt.get("device", "?"), rt.get("libtorch", "?"),
+                     "%d of %d" % (ck["best_epoch"], ck["epochs_done"]), ck["best_loss"]))
+    for _, seed, method, data, device, libtorch, best, loss in sorted(runs):
+        lines.append("| %s | %d | %s | %s | %s | %s | %.5f |" % (method, seed, data, device,
+                                                                libtorch, best, loss))
+    if not runs:
+        lines.append("| (none yet) | | | | | | |")
+    lines += ["", "Runs trained on a lent GPU are noted in protocol section 11 (docs/gpu.md, "
+              "\"Training runs on a lent machine\"). No section-7 run is evaluated yet."]
+    return lines
+
+
 def page():
     lines = ["# Verdicts", "",
              "[Back to the README](../README.md) · [all pages](README.md)", "",
@@ -147,6 +187,7 @@ def page():
              "| claim | paper | ours | verdict | command |", "|---|---|---|---|---|"]
     for r in rows():
         lines.append("| " + " | ".join(r) + " |")
+    lines += runs_section()
     return "\n".join(lines) + "\n"
 
 

@@ -264,7 +264,8 @@ json replay_json(const RunResult& run, const ReplayPick& pick, const HtmlReportO
     for (long t = 0; t < steps; t += stride) {
       const size_t u = static_cast<size_t>(t);
       d.frame_planes(u, planes.data());
-      const std::vector<uint8_t> rgb = bev_colour(planes.data(), d.channels, d.height, d.width);
+      const std::vector<uint8_t> rgb =
+          frame_picture(planes.data(), d.channels, d.height, d.width, d.camera());
       frames.push_back("data:image/png;base64," + base64(encode_png(rgb, d.width, d.height, 3)));
       shown.push_back(t);
       time.push_back(round3(static_cast<double>(t) * meta.dt));

@@ -12,7 +12,7 @@ void add_attention(CLI::App& app) {
   auto opt = std::make_shared<AttentionOptions>();
   auto as_json = std::make_shared<bool>(false);
   CLI::App* sub = app.add_subcommand(
-      "attention", "Grad-CAM attention maps of an image policy over recorded BEV frames: one PNG "
+      "attention", "Grad-CAM attention maps of an image policy over recorded frames (BEV or camera): one PNG "
                    "per frame (frame | map | overlay) and attention.json");
   sub->add_option("--checkpoint", opt->checkpoint,
                   "checkpoint folder of an image policy (bc-so, bc-oh, residual, fca, keyframe, "

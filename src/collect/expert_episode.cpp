@@ -7,6 +7,7 @@
 
 #include "core/png.hpp"
 #include "core/rng.hpp"
+#include "sense/bev_colour.hpp"
 #include "world/town.hpp"
 
 namespace cd {
@@ -167,13 +168,12 @@ EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, Epi
       std::snprintf(name, sizeof name, "/frame_%05zu.png", d.frames() - 1);
       std::vector<uint8_t> planes(d.frame_bytes());
       d.frame_planes(d.frames() - 1, planes.data());
-      if (d.camera()) {
-        std::vector<uint8_t> rgb;
-        append_rgb_rows(planes.data(), d.height, d.width, rgb);
-        write_png_rgb(png_dir + name, rgb, d.width, d.height);
-      } else {
+      if (d.camera())  // the BEV's PNGs are drawn larger (write_bev_png's scale)
+        write_png_rgb(png_dir + name,
+                      frame_picture(planes.data(), d.channels, d.height, d.width, true), d.width,
+                      d.height);
+      else
         write_bev_png(png_dir + name, planes.data(), d.channels, d.height, d.width);
-      }
     }
 
     Control executed = label;

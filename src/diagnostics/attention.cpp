@@ -149,10 +149,10 @@ std::vector<int> top_channel(const unsigned char* frame, int channels, int heigh
 
 std::vector<unsigned char> attention_grid(const unsigned char* frame, int channels, int height,
                                           int width, const std::vector<float>& map, int scale,
-                                          int* grid_width, int* grid_height) {
+                                          int* grid_width, int* grid_height, bool rgb) {
   const int pw = width * scale, ph = height * scale, sep = kAttentionSeparator;
   const int gw = 3 * pw + 2 * sep;
-  const std::vector<uint8_t> colour = bev_colour(frame, channels, height, width);
+  const std::vector<uint8_t> colour = frame_picture(frame, channels, height, width, rgb);
   std::vector<unsigned char> grid(static_cast<size_t>(gw) * ph * 3, 255);  // white separators
   for (int y = 0; y < ph; ++y)
     for (int x = 0; x < pw; ++x) {
@@ -209,7 +209,10 @@ AttentionReport run_attention(const AttentionOptions& o) {
                     " action components, the checkpoint was trained on " +
                     std::to_string(in.channels) + "x" + std::to_string(in.height) + "x" +
                     std::to_string(in.width) + " and " + std::to_string(in.action_dim));
-  if (set.channels > kBevChannelCount)
+  // RGB frames (the front camera's, MuJoCo-Image's) are drawn in their own colours and have no
+  // layers to split the attention by.
+  const bool rgb = set.layout == FrameLayout::Bytes;
+  if (!rgb && set.channels > kBevChannelCount)
     throw DataError("data in " + o.data + " has " + std::to_string(set.channels) +
                     " channels; attention maps are drawn for at most " +
                     std::to_string(int(kBevChannelCount)));
@@ -223,11 +226,13 @@ AttentionReport run_attention(const AttentionOptions& o) {
   r.select = o.select;
   r.history = K;
   r.stride = stride;
-  r.channels = set.channel_names;
-  r.channels.resize(set.channels);
-  for (int c = 0; c < set.channels; ++c)
-    if (r.channels[c].empty()) r.channels[c] = "channel_" + std::to_string(c);
-  r.channels.push_back("none");
+  if (!rgb) {
+    r.channels = set.channel_names;
+    r.channels.resize(set.channels);
+    for (int c = 0; c < set.channels; ++c)
+      if (r.channels[c].empty()) r.channels[c] = "channel_" + std::to_string(c);
+    r.channels.push_back("none");
+  }
 
   struct Candidate {
     int e, t;
@@ -319,13 +324,17 @@ AttentionReport run_attention(const AttentionOptions& o) {
       r.map_width = g.width;
     }
 
-    const std::vector<int> top = top_channel(current, C, H, W);
     std::vector<double> mass(groups, 0.0), pixels(groups, 0.0);
     double total = 0;
-    for (size_t p = 0; p < plane; ++p) {
-      mass[top[p]] += map[p];
-      pixels[top[p]] += 1;
-      total += map[p];
+    if (groups > 0) {  // the BEV: the attention on each layer (the one drawn on top)
+      const std::vector<int> top = top_channel(current, C, H, W);
+      for (size_t p = 0; p < plane; ++p) {
+        mass[top[p]] += map[p];
+        pixels[top[p]] += 1;
+        total += map[p];
+      }
+    } else {
+      for (size_t p = 0; p < plane; ++p) total += map[p];
     }
     f.attention_share.assign(groups, 0.0);
     f.pixel_share.assign(groups, 0.0);
@@ -342,7 +351,8 @@ AttentionReport run_attention(const AttentionOptions& o) {
     }
 
     int gw = 0, gh = 0;
-    const std::vector<unsigned char> grid = attention_grid(current, C, H, W, map, o.scale, &gw, &gh);
+    const std::vector<unsigned char> grid =
+        attention_grid(current, C, H, W, map, o.scale, &gw, &gh, rgb);
     write_png_rgb(o.out + "/" + f.png, grid, gw, gh);
     r.frames.push_back(std::move(f));
   }

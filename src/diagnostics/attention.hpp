@@ -59,7 +59,9 @@ struct AttentionReport {
   std::string checkpoint, data, out, method, output, select;
   int history = 0, stride = 0;
   int map_channels = 0, map_height = 0, map_width = 0;  // the feature map Grad-CAM weighs
-  std::vector<std::string> channels;  // the data's channel names, then "none"
+  // The data's channel names, then "none"; empty for RGB frames (no layers: the shares are
+  // empty too).
+  std::vector<std::string> channels;
   long candidates = 0;                // frames matching `select` (with a full history)
   std::vector<AttentionFrame> frames;
   long attended_frames = 0;           // frames whose map is not all zero
@@ -80,11 +82,12 @@ std::vector<float> resize_bilinear(const std::vector<float>& map, int h, int w, 
 std::vector<int> top_channel(const unsigned char* frame, int channels, int height, int width);
 
 // The grid of one frame as RGB (width 3 * W * scale + 2 * kAttentionSeparator, height
-// H * scale): the frame in the BEV's colours | the map as a heat image | the map over the frame.
+// H * scale): the frame in the BEV's colours (`rgb`: its own, the camera's) | the map as a heat
+// image | the map over the frame.
 inline constexpr int kAttentionSeparator = 2;
 std::vector<unsigned char> attention_grid(const unsigned char* frame, int channels, int height,
                                           int width, const std::vector<float>& map, int scale,
-                                          int* grid_width, int* grid_height);
+                                          int* grid_width, int* grid_height, bool rgb = false);
 
 // Runs the command: N PNGs and attention.json (atomic) in options.out. Throws ConfigError for
 // N < 1, an unknown selection or a run folder that is not an image policy (dim, cim: the

@@ -1,4 +1,6 @@
 #include "sense/bev.hpp"
+
+#include "core/png.hpp"
 #include "sense/bev_colour.hpp"
 
 #include <algorithm>
@@ -255,6 +257,15 @@ void BevRenderer::render_packed(const BevScene& scene, uint8_t* out) const {
               col_e - d.dot(left) / mpp, -u.dot(fwd), -u.dot(left), len / 2 / mpp,
               std::max(0.5 / mpp, 1.0));
   }
+}
+
+std::vector<uint8_t> frame_picture(const uint8_t* frame, int channels, int height, int width,
+                                   bool rgb) {
+  if (!rgb) return bev_colour(frame, channels, height, width);
+  if (channels != 3) throw Error("an RGB frame has 3 channels, not " + std::to_string(channels));
+  std::vector<uint8_t> out;
+  append_rgb_rows(frame, height, width, out);
+  return out;
 }
 
 std::vector<uint8_t> bev_colour(const uint8_t* frame, int channels, int height, int width) {

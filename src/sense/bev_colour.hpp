@@ -12,4 +12,9 @@ namespace cd {
 // so a pixel shows the highest channel that is on there. Throws Error for C outside [1, 8].
 std::vector<uint8_t> bev_colour(const uint8_t* frame, int channels, int height, int width);
 
+// A frame as people see it, H*W RGB triplets: an RGB frame's own colours (`rgb`: the front
+// camera's, MuJoCo-Image's; 3 planes), else the BEV's colours above.
+std::vector<uint8_t> frame_picture(const uint8_t* frame, int channels, int height, int width,
+                                   bool rgb);
+
 }  // namespace cd

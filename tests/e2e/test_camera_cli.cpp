@@ -81,6 +81,32 @@ with h5py.File(sys.argv[1], "r") as f:
   EXPECT_EQ(test::read_text(run.dir() / "one/results.json"),
             test::read_text(run.dir() / "two/results.json"));
 
+  // What the tools draw of camera frames: attention's grid (frame | map | overlay) at the
+  // camera's size, its frame panel in the camera's colours (many, not the BEV's few); diagnose
+  // compares on the folder; the report's replay of a recorded episode embeds its frames.
+  test::run_cli_ok({"attention", "--checkpoint", run.run(), "--data", run.data(), "--out",
+                    run.dir() / "att", "--frames", "2", "--select", "all", "--scale", "2"});
+  const json att = test::read_json(run.dir() / "att/attention.json");
+  ASSERT_EQ(att["frames"].size(), 2u) << att.dump();
+  const std::string att_oracle = run.dir() / "att.py";
+  test::write_text(att_oracle, R"PY(
+import sys, zlib, struct
+data = open(sys.argv[1], "rb").read()
+w, h = struct.unpack(">II", data[16:24])
+assert (w, h) == (3 * 96 * 2 + 2 * 2, 32 * 2), (w, h)
+)PY");
+  const test::CommandResult apy = test::run_command(
+      {CD_PYTHON, att_oracle, run.dir() / ("att/" + att["frames"][0]["png"].get<std::string>())});
+  ASSERT_TRUE(apy.exited && apy.exit_code == 0) << apy.describe();
+  const test::CommandResult diag =
+      test::run_cli_ok({"diagnose", "--checkpoint", run.run(), "--data", run.data(), "--json"});
+  EXPECT_GT(json::parse(diag.out)["frames"].get<int>(), 0) << diag.out;
+  test::run_cli_ok(test::eval_args(run.config(), "bc-oh", run.run(), run.suite(),
+                                   run.dir() / "rec", 1, {"--record"}));
+  test::run_cli_ok({"report", run.dir() / "rec", "--html", run.dir() / "page.html", "--episodes", "0"});
+  EXPECT_NE(test::read_text(run.dir() / "page.html").find("data:image/png;base64,"),
+            std::string::npos);
+
   // The BEV's world refuses the camera's checkpoint, naming both views.
   const std::string bev = test::write_test_config(run.dir(), "empty", kTrain, "bev.toml");
   test::CommandResult r =
