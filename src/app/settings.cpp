@@ -96,6 +96,7 @@ void visit_settings(S& st, V&& v) {
   v.number("collect.augment", "fraction", st.collect.augment.fraction, 0, 1);
   v.number("collect.augment", "shift_m", st.collect.augment.shift_m, 0, 5);
   v.number("collect.augment", "rotate_rad", st.collect.augment.rotate_rad, 0, 1);
+  v.text("collect.augment", "cameras", st.collect.augment.cameras, {"random", "sides"});
 
   v.number("control", "kp", st.control.kp, 0, 100);
   v.number("control", "ki", st.control.ki, 0, 100);

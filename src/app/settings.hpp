@@ -35,6 +35,10 @@ struct AugmentSettings {
   double fraction = 0;       // 0: off
   double shift_m = 1.0;
   double rotate_rad = 0.15;
+  // "random": shift and rotation uniform within the bounds; "sides": CILRS's left and right
+  // cameras, the pose (+shift_m, +rotate_rad) (left of the ego, looking left) or (-shift_m,
+  // -rotate_rad), left or right by a coin; each labelled with the steer that corrects it.
+  std::string cameras = "random";
 };
 
 struct CollectSettings {

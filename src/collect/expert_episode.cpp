@@ -110,7 +110,11 @@ Control ExpertRecorder::record_step(EpisodeData& d, Rng* augment) const {
   bool augmented = false;
   if (augment && world_.free_lateral()) {
     augmented = augment->uniform() < aug.fraction;
-    if (augmented) {
+    if (augmented && aug.cameras == "sides") {  // the left camera looks left, the right right
+      const double side = augment->uniform() < 0.5 ? 1.0 : -1.0;
+      shift = side * aug.shift_m;
+      turn = side * aug.rotate_rad;
+    } else if (augmented) {
       shift = augment->uniform(-aug.shift_m, aug.shift_m);
       turn = augment->uniform(-aug.rotate_rad, aug.rotate_rad);
     }

@@ -64,6 +64,36 @@ class LoadEpisodeTest(TempDirCase):
         self.assertTrue(left.any() and right.any())
         self.assertLess(steer[left].mean(), steer[right].mean())
 
+    def test_side_cameras_of_the_camera_view(self):
+        """collect.augment.cameras = "sides" with the front camera: augmented frames come from
+        CILRS's left or right camera exactly ((+shift, +turn) or (-shift, -turn)), rendered
+        from that pose (they differ from the true view's frames), and the left camera's labels
+        steer right of the right camera's."""
+        config = write_config(self.dir, "empty")
+        with open(config, "a") as f:
+            f.write("[ego]\nlateral = \"free\"\n")
+            f.write("[collect.augment]\nfraction = 0.5\nshift_m = 0.6\nrotate_rad = 0.2\n"
+                    "cameras = \"sides\"\n")
+            f.write("[sense]\nview = \"camera\"\n[sense.camera]\nwidth = 64\nheight = 24\n")
+        out = os.path.join(self.dir, "sides")
+        cli("collect", "--config", config, "--episodes", 1, "--out", out)
+        path = glob.glob(os.path.join(out, "*.h5"))[0]
+        ep = causaldrive.load_episode(path)
+        aug, frames = ep["augment"], ep["frames"]
+        self.assertEqual(frames.shape[1:], (3, 24, 64))
+        shifted = np.any(aug != 0, axis=1)
+        self.assertTrue(0.35 < shifted.mean() < 0.65, shifted.mean())
+        left = shifted & (aug[:, 0] > 0)
+        right = shifted & (aug[:, 0] < 0)
+        np.testing.assert_allclose(aug[left], np.tile([0.6, 0.2], (left.sum(), 1)), atol=1e-6)
+        np.testing.assert_allclose(aug[right], np.tile([-0.6, -0.2], (right.sum(), 1)), atol=1e-6)
+        self.assertTrue(left.any() and right.any())
+        steer = ep["action"][:, 2]
+        self.assertLess(steer[left].mean(), steer[right].mean())
+        # A side camera's frame is not its neighbour true frame's: the view moved.
+        t = int(np.flatnonzero(left[1:] & ~shifted[:-1])[0]) + 1
+        self.assertFalse(np.array_equal(frames[t], frames[t - 1]))
+
     def test_errors(self):
         with self.assertRaises(causaldrive.IoError) as e:
             causaldrive.load_episode(os.path.join(self.dir, "missing.h5"))
