@@ -281,7 +281,14 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
   auto new_agent = [&](const World* w) {
     return req.make ? req.make(settings, w) : make_agent(req.agent, req.checkpoint, settings, w);
   };
-  std::string agent_name = new_agent(nullptr)->name();
+  std::string agent_name;
+  {
+    const auto agent = new_agent(nullptr);
+    agent_name = agent->name();
+    // A run trained on another view or size: one line here rather than one per worker.
+    if (!req.make && agent->uses_frames() && !req.checkpoint.empty())
+      require_trained_view(req.agent, req.checkpoint, frame_format_of(settings));
+  }
   if (settings.eval.sensor == "shifted") require_bev_for_shift(settings.view);
   const int trials = settings.eval.trials > 0 ? settings.eval.trials : suite.trials;
   const int total = static_cast<int>(suite.tasks.size()) * trials;

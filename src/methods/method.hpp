@@ -54,8 +54,9 @@ TrainSummary train_method(const Settings& settings, const TrainRequest& request)
 
 // Agents by name: expert, cs, and the learned methods (which need their run folder), to drive
 // in `world` (the expert needs it to act; null: an agent that is only checked).
-// Throws ConfigError for an unknown name or a folder of another method, and for a run whose
-// frames (its record's "input") are not the world's: another view (sense.view) or size.
+// Throws ConfigError for an unknown name or a folder of another method, and, given a world, for
+// a run whose frames (its record's "input") are not the world's: another view (sense.view) or
+// size. (Without a world the caller supplies the observations; eval checks the view first.)
 std::unique_ptr<Agent> make_agent(const std::string& name, const std::string& run_dir,
                                   const Settings& settings, const World* world = nullptr);
 // The last check of make_agent: ConfigError when `run_dir` was trained on frames of another

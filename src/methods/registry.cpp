@@ -207,8 +207,8 @@ std::unique_ptr<Agent> make_agent(const std::string& name, const std::string& ru
     throw ConfigError("agent '" + name + "' needs --checkpoint DIR (the output of "
                       "`causaldrive train --method " + name + "`)");
   std::unique_ptr<Agent> agent = m.agent(name, run_dir, settings, world);
-  if (agent->uses_frames() && !run_dir.empty())
-    require_trained_view(name, run_dir, world ? world->frame_format() : frame_format_of(settings));
+  if (world && agent->uses_frames() && !run_dir.empty())
+    require_trained_view(name, run_dir, world->frame_format());
   if (settings.ego.lateral == "free" && !agent->steers())
     throw ConfigError("agent '" + name + "' does not steer: it cannot drive with ego.lateral = "
                       "\"free\" yet; use \"route\"");
