@@ -64,15 +64,18 @@ CollectReport collect(const Settings& settings, const CollectOptions& options) {
     } catch (const std::exception& e) {
       throw DataError(manifest + " is damaged (" + e.what() + "): collect into another --out folder");
     }
-    // Keys the record lacks read as of their time (settings_from_json); a record it cannot read
-    // back (DAgger's rollout folders hold derived seeds beyond a config's range) as it is.
-    nlohmann::json then = stored;
+    // Keys the record lacks (written before they existed) read as their defaults, the behaviour
+    // of their time: through settings_from_json, or, for a record it cannot read back (DAgger's
+    // rollout folders hold derived seeds beyond a config's range), the record over the defaults.
+    nlohmann::json then = settings_to_json(Settings{});
+    then.merge_patch(stored);
     try {
       then = settings_to_json(settings_from_json(stored, manifest));
     } catch (const DataError&) {
     }
+    // The frames too: a folder holds one view (sense.view) of one camera.
     const std::string diff = settings_diff(
-        then, settings_to_json(settings), {"world", "ego", "expert", "bev", "collect"},
+        then, settings_to_json(settings), {"world", "ego", "expert", "bev", "sense", "collect"},
         [](const std::string& table, const std::string& key) {
           return table == "collect" && (key == "episodes" || key == "workers" || key == "out");
         });

@@ -361,6 +361,24 @@ TEST(Collect, AFolderOfOtherSettingsIsNotAddedTo) {
   r = collect_cli(a, out, 2, 1);
   ASSERT_EQ(r.exit_code, 0) << r.describe();
   EXPECT_EQ(episode_files(out).size(), 2u);
+
+  // A record written before some keys existed (here without the sense table and
+  // collect.augment.cameras) reads them as their defaults: the folder is added to.
+  nlohmann::json rec = nlohmann::json::parse(test::read_text(out + "/collect.json"));
+  rec["settings"].erase("sense");
+  rec["settings"]["collect"]["augment"].erase("cameras");
+  test::write_text(out + "/collect.json", rec.dump(2));
+  r = collect_cli(a, out, 3, 1);
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_EQ(episode_files(out).size(), 3u);
+  // The camera's episodes are not added to a folder of the BEV's.
+  const std::string cam = test::write_test_config(
+      other, "empty", "max_episode_s = 8\nhold_s = 0.0\n[sense]\nview = \"camera\"\n", "cam.toml");
+  r = collect_cli(cam, out, 4, 1);
+  EXPECT_EQ(r.exit_code, 1) << r.describe();
+  ASSERT_EQ(test::split_lines(r.err).size(), 1u) << r.err;
+  EXPECT_NE(r.err.find("sense.view \"bev\" -> \"camera\""), std::string::npos) << r.err;
+  EXPECT_EQ(episode_files(out).size(), 3u);
 }
 
 }  // namespace
