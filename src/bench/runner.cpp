@@ -83,7 +83,7 @@ EpisodeResult run_episode(World& world, Agent& agent, const Task& task, const Se
   FrameBytes seen;  // the agent's current frame as stored (the BEV packed), for the recording
   if (record) {
     begin_recording(world, *record);
-    seen.resize(world.camera_view() ? record->frame_bytes() : record->frame_pixels());
+    seen.resize(stored_frame_bytes(world));
   }
   long n = 0;
   const auto wall0 = std::chrono::steady_clock::now();

@@ -114,7 +114,8 @@ void write_moment_preview(const Settings& settings, const std::string& png, uint
   const BevConfig& bc = world.renderer().config();
   std::vector<uint8_t> bev(world.renderer().frame_bytes());
   world.renderer().render(world.scene(), bev.data());
-  const std::vector<uint8_t> bev_rgb = bev_colour(bev.data(), kBevChannelCount, bc.height, bc.width);
+  const std::vector<uint8_t> bev_rgb =
+      frame_picture(bev.data(), kBevChannelCount, bc.height, bc.width, false);
   const int gap = 4, CW = settings.camera.width, CH = settings.camera.height;
   const int n = static_cast<int>(weathers.size());
   const int width = 2 * bc.width + gap + CW;
@@ -125,9 +126,8 @@ void write_moment_preview(const Settings& settings, const std::string& png, uint
   const CameraScene scene = world.camera_scene();
   for (int k = 0; k < n; ++k) {
     cameras[static_cast<size_t>(k)]->render(scene, frame.data());
-    std::vector<uint8_t> rgb;
-    append_rgb_rows(frame.data(), CH, CW, rgb);
-    blit(canvas, width, rgb, CW, CH, 2 * bc.width + gap, k * (CH + gap));
+    blit(canvas, width, frame_picture(frame.data(), 3, CH, CW, true), CW, CH, 2 * bc.width + gap,
+         k * (CH + gap));
   }
   write_png_rgb(png, canvas, width, height);
   std::printf("%s at %.1f s of episode seed %llu: BEV beside the camera in %d weather(s) -> %s\n",

@@ -54,18 +54,32 @@ void begin_recording(const World& world, EpisodeData& d) {
   for (const auto& name : cause_names()) d.causes[name];  // the series record_causes fills
 }
 
+size_t stored_frame_bytes(const World& world) {
+  const FrameFormat& f = world.frame_format();
+  return world.camera_view() ? f.bytes() : f.pixels();
+}
+
+void render_stored(const World& world, uint8_t* out, const Pose2* seen) {
+  if (world.camera_view()) {
+    if (seen)
+      world.render_from(*seen, out);
+    else
+      world.render(out);
+    return;
+  }
+  BevScene scene = world.scene();
+  if (seen) scene.ego = *seen;
+  world.renderer().render_packed(scene, out);
+}
+
 void record_state(const World& world, EpisodeData& d, const uint8_t* stored_frame) {
-  // The camera's frames as rendered (RGB planes); the BEV's as bit planes.
   FrameBytes& frames = world.camera_view() ? d.rgb : d.bev_packed;
-  const size_t n = world.camera_view() ? d.frame_bytes() : d.frame_pixels();
-  const size_t at = frames.size();
+  const size_t n = stored_frame_bytes(world), at = frames.size();
   frames.resize(at + n);
   if (stored_frame)
     std::copy(stored_frame, stored_frame + n, frames.begin() + at);
-  else if (world.camera_view())
-    world.render(frames.data() + at);
   else
-    world.render_packed(frames.data() + at);
+    render_stored(world, frames.data() + at);
   if (world.free_lateral()) {
     d.lateral_error.push_back(static_cast<float>(world.road_contact().lateral_error));
     d.heading_error.push_back(static_cast<float>(world.road_contact().heading_error));
@@ -121,15 +135,9 @@ Control ExpertRecorder::record_step(EpisodeData& d, Rng* augment) const {
     d.augment.insert(d.augment.end(), {static_cast<float>(shift), static_cast<float>(turn)});
   }
   const Pose2 seen = shifted_pose(world_.ego().pose, shift, turn);
-  if (augmented) {  // as stored: the camera's RGB planes, the BEV's bit planes
-    FrameBytes frame(world_.camera_view() ? d.frame_bytes() : d.frame_pixels());
-    if (world_.camera_view()) {
-      world_.render_from(seen, frame.data());
-    } else {
-      BevScene scene = world_.scene();
-      scene.ego = seen;
-      world_.renderer().render_packed(scene, frame.data());
-    }
+  if (augmented) {
+    FrameBytes frame(stored_frame_bytes(world_));
+    render_stored(world_, frame.data(), &seen);
     record_state(world_, d, frame.data());
   } else {
     record_state(world_, d);
@@ -150,10 +158,8 @@ EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, Epi
 
   begin(d);
   const long expected = static_cast<long>(task.timeout_s / settings_.world.dt) + 1;
-  if (world_.camera_view())
-    d.rgb.reserve(d.frame_bytes() * static_cast<size_t>(expected));
-  else
-    d.bev_packed.reserve(d.frame_pixels() * static_cast<size_t>(expected));
+  (world_.camera_view() ? d.rgb : d.bev_packed)
+      .reserve(stored_frame_bytes(world_) * static_cast<size_t>(expected));
 
   const NoiseSettings& ns = cs.noise;
   Rng noise_rng(derive_seed(seed, 2));

@@ -34,6 +34,11 @@ void begin_recording(const World& world, EpisodeData& data);
 // bytes; else the world's own), a free ego's lane errors, speed, command, pose and the causes.
 // The action is appended apart (record_action).
 void record_state(const World& world, EpisodeData& data, const uint8_t* stored_frame = nullptr);
+// A frame as recordings store it: the camera's 3*H*W RGB bytes, the BEV's H*W bytes of channel
+// bits. stored_frame_bytes: its size; render_stored: the world's frame now, seen from `seen`
+// when given (collect.augment's shifted views).
+size_t stored_frame_bytes(const World& world);
+void render_stored(const World& world, uint8_t* out, const Pose2* seen = nullptr);
 // Appends one action: throttle, brake and, when `steers`, steer.
 void record_action(EpisodeData& data, const Control& control, bool steers);
 // The attributes every recording of this world shares: town, dt, metres per pixel, channel

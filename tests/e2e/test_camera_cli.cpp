@@ -109,18 +109,12 @@ assert (w, h) == (3 * 96 * 2 + 2 * 2, 32 * 2), (w, h)
 
   // The BEV's world refuses the camera's checkpoint, naming both views.
   const std::string bev = test::write_test_config(run.dir(), "empty", kTrain, "bev.toml");
-  test::CommandResult r =
-      test::run_cli(test::eval_args(bev, "bc-oh", run.run(), run.suite(), run.dir() / "bev", 1));
-  test::expect_one_line_error(r, "was trained on camera frames (3x32x96)");
+  const test::CommandResult r =
+      run.refused_eval(bev, "bev", "was trained on camera frames (3x32x96)");
   EXPECT_NE(r.err.find("renders bev frames"), std::string::npos) << r.err;
-  EXPECT_FALSE(std::filesystem::exists(run.dir() / "bev/results.json"));
 
   // The BEV's perception noise is not the camera's condition.
-  r = test::run_cli(test::with(
-      test::eval_args(run.config(), "bc-oh", run.run(), run.suite(), run.dir() / "shifted", 1),
-      {"--sensor", "shifted"}));
-  test::expect_one_line_error(r, "held-out weather");
-  EXPECT_FALSE(std::filesystem::exists(run.dir() / "shifted/results.json"));
+  run.refused_eval(run.config(), "shifted", "held-out weather", {"--sensor", "shifted"});
 }
 
 TEST(CameraView, ABevCheckpointIsRefusedByTheCamera) {
@@ -131,11 +125,8 @@ TEST(CameraView, ABevCheckpointIsRefusedByTheCamera) {
                      .suite = {.traffic = "empty", .scenarios = {"route"}}});
   const std::string camera =
       test::write_test_config(run.dir(), "empty", kTrain + kCamera, "camera.toml");
-  const test::CommandResult r = test::run_cli(
-      test::eval_args(camera, "bc-so", run.run(), run.suite(), run.dir() / "camera", 1));
-  test::expect_one_line_error(r, "was trained on bev frames");
+  const test::CommandResult r = run.refused_eval(camera, "camera", "was trained on bev frames");
   EXPECT_NE(r.err.find("renders camera frames (3x32x96"), std::string::npos) << r.err;
-  EXPECT_FALSE(std::filesystem::exists(run.dir() / "camera/results.json"));
 }
 
 // town --moment-preview: the BEV (2x) beside the camera in each weather, one PNG whose size

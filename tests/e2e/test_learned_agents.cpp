@@ -134,16 +134,9 @@ TEST(SteeringAgents, TrainedOnSteeringDataTheyDriveAFreeEgo) {
   EXPECT_GT(res["episodes"][0]["agent"]["plans"].get<double>(), 0.0) << res.dump();
   const std::string route_config =
       test::write_test_config(cim.dir(), "empty", route + with_path, "route.toml");
-  r = test::run_cli(
-      test::eval_args(route_config, "cim", cim.run(), cim.suite(), cim.dir() / "route", 1));
-  test::expect_one_line_error(r, "needs ego.lateral");
-  EXPECT_FALSE(std::filesystem::exists(cim.dir() / "route/results.json"));
+  cim.refused_eval(route_config, "route", "needs ego.lateral");
   // --cim-path sets the key; a folder without a dim/rip run is refused in one line.
-  r = test::run_cli(test::with(
-      test::eval_args(cim.config(), "cim", cim.run(), cim.suite(), cim.dir() / "bad", 1),
-      {"--cim-path", bc.run()}));
-  test::expect_one_line_error(r, "holds no dim/rip run");
-  EXPECT_FALSE(std::filesystem::exists(cim.dir() / "bad/results.json"));
+  cim.refused_eval(cim.config(), "bad", "holds no dim/rip run", {"--cim-path", bc.run()});
 }
 
 TEST(SteeringAgents, APolicyTrainedWithoutSteerIsRefusedOnAFreeEgo) {
@@ -155,10 +148,7 @@ TEST(SteeringAgents, APolicyTrainedWithoutSteerIsRefusedOnAFreeEgo) {
                        .suite = {.traffic = "empty", .scenarios = {"route"}}});
   const std::string free_config = test::write_test_config(
       route.dir(), "empty", "\n[ego]\nlateral = \"free\"\n", "free.toml");
-  const test::CommandResult r = test::run_cli(
-      test::eval_args(free_config, "bc-so", route.run(), route.suite(), route.dir() / "free", 1));
-  test::expect_one_line_error(r, "trained without steer");
-  EXPECT_FALSE(std::filesystem::exists(route.dir() / "free/results.json"));
+  route.refused_eval(free_config, "free", "trained without steer");
 }
 
 TEST(CimEval, TinyRunDrivesInTheSimulator) {

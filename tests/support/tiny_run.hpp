@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <filesystem>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -158,6 +159,17 @@ class TinyRun {
   CommandResult eval(const std::string& out_name, int workers = 1, std::string suite = "") {
     if (suite.empty()) suite = this->suite();
     return run_cli_ok(eval_args(config_, spec_.method, run(), suite, dir_ / out_name, workers));
+  }
+
+  // Evaluates spec.method's agent on run() with `config` into dir/out_name, expecting the
+  // one-line refusal containing `needle` and no results.json.
+  CommandResult refused_eval(const std::string& config, const std::string& out_name,
+                             const std::string& needle, const std::vector<std::string>& more = {}) {
+    CommandResult r =
+        run_cli(eval_args(config, spec_.method, run(), suite(), dir_ / out_name, 1, more));
+    expect_one_line_error(r, needle);
+    EXPECT_FALSE(std::filesystem::exists(dir_ / (out_name + "/results.json")));
+    return r;
   }
 
   // dir/out_name/results.json of an evaluation.
