@@ -145,6 +145,7 @@ void visit_settings(S& st, V&& v) {
   v.number("eval", "prefill_s", st.eval.prefill_s, 0, 60);
   v.number("eval", "cs_speed", st.eval.cs_speed, 0.5, 40);
   v.integer("eval", "max_attempts", st.eval.max_attempts, 1, 100);
+  v.text("eval", "batch", st.eval.batch, {"auto", "on", "off"});
   v.text("eval", "sensor", st.eval.sensor, {"clean", "shifted"});
   v.integer("eval", "sensor_seed", st.eval.sensor_shift.seed, 0, kMaxI64);
   v.number("eval", "sensor_miss", st.eval.sensor_shift.miss, 0, 1);

@@ -107,6 +107,12 @@ struct EvalSettings {
   double prefill_s = 1.0;   // s the ego is held still while the agent's history fills
   double cs_speed = 8.0;    // m/s of the constant-speed baseline
   int max_attempts = 3;     // an episode whose worker or SUMO crashed is run again this often
+  // Batched inference (inference/batched_inference.hpp): "on", one inference process serves
+  // the policy networks of all the worlds (2 or more workers); "off", each world runs its own;
+  // "auto" (the default), on where eval.device is cuda (one process holds the GPU), off on the
+  // CPU, where it was not faster on the 2-core machine it was measured on (ARCHITECTURE.md).
+  // On the CPU the bytes are the same either way (batch-invariant kernels, nn/kernels.hpp).
+  std::string batch = "auto";
   // What the agents' sensor shows (the failure modes' "new sensor" condition): "clean", or
   // "shifted" with the perception noise of sensor_shift (sense/sensor_shift.hpp). The expert
   // and the ground truth never see the shift.

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -22,6 +23,7 @@
 #include "data/h5_episode.hpp"
 #include "core/job.hpp"
 #include "core/mpi.hpp"
+#include "inference/batched_inference.hpp"
 #include "methods/method.hpp"
 #include "sense/sensor_shift.hpp"
 #include "world/town.hpp"
@@ -322,10 +324,12 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
   // recorded, CPU runs.
   spec.claim = [&] {
     claim_eval_folder(out, run,
-                      {"agent", "suite", "trials", "checkpoint", "sensor", "sensor_shift", "device"},
+                      {"agent", "suite", "trials", "checkpoint", "sensor", "sensor_shift", "device",
+                       "inference"},
                       [](nlohmann::json& prev) {
                         if (!prev.contains("sensor")) prev["sensor"] = "clean";
                         if (!prev.contains("device")) prev["device"] = "cpu";
+                        if (!prev.contains("inference")) prev["inference"] = "batch-1";
                       });
   };
   spec.total = total;
@@ -414,10 +418,26 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
     report.results["summary"] = summarize(results);
     write_file_atomic(out + "/results.json", report.results.dump(2) + "\n");
   };
+  // Batched inference (eval.batch): one inference process for this process's worlds.
+  const bool policy = !req.make && std::find(policy_runner_methods().begin(),
+                                             policy_runner_methods().end(),
+                                             req.agent) != policy_runner_methods().end();
+  std::optional<InputFormat> input;
+  if (policy) input = require_checkpoint(req.checkpoint).input;
+  const std::unique_ptr<BatchedInference> inference =
+      start_job_inference(spec, settings.eval.batch, device, input ? &*input : nullptr);
+  // What the bytes depend on (eval.batch): a folder resumes only with the same.
+  run["inference"] = inference_record(inference.get(), device);
   const JobResult job = run_job(spec, write_results);
   report.steps = job.units;
   report.run_now = job.run_now;
   report.seconds = job.seconds;
+  if (inference) {
+    const BatchStats b = inference->stats();
+    report.batches = b.batches;
+    report.batch_rows = b.rows;
+    report.infer_s = b.infer_s;
+  }
   return report;
 }
 

@@ -43,6 +43,10 @@ struct EvalReport {
   int run_now = 0;         // episodes run by this call (the rest were already recorded)
   double seconds = 0;
   long steps = 0;          // agent steps run by this call
+  // Batched inference (eval.batch): forward passes the inference process ran and the
+  // observations in them (0 when the worlds ran their networks themselves).
+  long batches = 0, batch_rows = 0;
+  double infer_s = 0;
 };
 
 // Work done by run_episode: agent steps and the wall time of the driving loop (observation,

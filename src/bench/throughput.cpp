@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
+#include <filesystem>
 #include <memory>
 
 #include <nlohmann/json.hpp>
@@ -13,6 +15,7 @@
 #include "bench/runner.hpp"
 #include "bench/suite.hpp"
 #include "collect/expert_episode.hpp"
+#include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/rng.hpp"
 #include "inference/policy_runner.hpp"
@@ -192,6 +195,102 @@ void bench_eval(Settings s, const std::string& agent_name, const std::string& ch
       }
     }
   }
+}
+
+void bench_eval_workers(Settings s, const std::string& agent_name, const std::string& checkpoint,
+                        const std::string& suite_name, int episodes, int workers, int rounds,
+                        int baseline_workers, bool json) {
+  if (workers < 1 || rounds < 1 || episodes < 1 || baseline_workers < 0)
+    throw ConfigError("bench eval: --workers, --rounds and --episodes must be >= 1");
+  Suite suite = load_suite(suite_name);
+  if (static_cast<int>(suite.tasks.size()) > episodes) suite.tasks.resize(static_cast<size_t>(episodes));
+  suite.trials = 1;
+  char tmpl[] = "/tmp/causaldrive-bench-eval-XXXXXX";
+  if (!mkdtemp(tmpl)) throw IoError("bench eval: cannot create a temporary folder");
+  const std::string tmp = tmpl;
+  struct Remove {
+    std::string dir;
+    ~Remove() {
+      std::error_code ec;
+      std::filesystem::remove_all(dir, ec);
+    }
+  } remove{tmp};
+  write_file_atomic(tmp + "/suite.json", suite_to_json(suite).dump(2) + "\n");
+  s.eval.suite = tmp + "/suite.json";
+  s.eval.trials = 1;
+  struct Row {
+    std::string name, agent, checkpoint, batch;
+    int workers;
+    long steps = 0, episodes = 0, batches = 0, batch_rows = 0;
+    double seconds = 0, infer_s = 0;
+    std::vector<double> rates;  // steps/s per round
+  };
+  std::vector<Row> rows = {{agent_name, agent_name, checkpoint, s.eval.batch, workers},
+                           {"expert", "expert", "", s.eval.batch, workers}};
+  if (baseline_workers > 0)
+    rows.push_back({agent_name + " (batch off)", agent_name, checkpoint, "off", baseline_workers});
+  for (int r = 0; r < rounds; ++r)
+    for (size_t k = 0; k < rows.size(); ++k) {
+      Row& row = rows[k];
+      Settings e = s;
+      e.eval.workers = row.workers;
+      e.eval.batch = row.batch;
+      e.eval.out = tmp + "/r" + std::to_string(r) + "-" + std::to_string(k);
+      EvalRequest req;
+      req.agent = row.agent;
+      req.checkpoint = row.checkpoint;
+      req.quiet = true;
+      const auto t0 = std::chrono::steady_clock::now();
+      const EvalReport rep = run_eval(e, req);
+      const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      row.steps += rep.steps;
+      row.episodes += rep.run_now;
+      row.seconds += sec;
+      row.batches += rep.batches;
+      row.batch_rows += rep.batch_rows;
+      row.infer_s += rep.infer_s;
+      row.rates.push_back(static_cast<double>(rep.steps) / sec);
+    }
+  auto ratio = [&](size_t a, size_t b) {  // median over rounds of row a's steps/s over row b's
+    std::vector<double> q;
+    for (int r = 0; r < rounds; ++r) q.push_back(rows[a].rates[r] / rows[b].rates[r]);
+    return *quantile(q, 0.5);
+  };
+  if (json) {
+    nlohmann::json j = {{"suite", suite.name}, {"episodes", episodes}, {"rounds", rounds}};
+    for (size_t k = 0; k < rows.size(); ++k) {
+      const Row& row = rows[k];
+      nlohmann::json o = {{"agent", row.agent},  {"workers", row.workers},
+                          {"batch", row.batch},  {"steps_per_s", row.steps / row.seconds},
+                          {"episodes_per_s", row.episodes / row.seconds}};
+      o["batches"] = row.batches;
+      if (row.batch_rows > 0) o["infer_us_per_row"] = 1e6 * row.infer_s / row.batch_rows;
+      if (row.batches > 0) o["mean_batch"] = static_cast<double>(row.batch_rows) / row.batches;
+      j[k == 0 ? "agent" : k == 1 ? "expert" : "baseline"] = o;
+    }
+    j["ratio_to_expert"] = ratio(0, 1);
+    if (rows.size() > 2) j["speedup_over_baseline"] = ratio(0, 2);
+    j["build"] = build_components();
+    std::printf("%s\n", j.dump().c_str());
+    return;
+  }
+  std::printf("closed loop on the first %d tasks of %s, %d rounds (agent, expert%s), as eval "
+              "runs them\n",
+              episodes, suite.name.c_str(), rounds, rows.size() > 2 ? ", baseline" : "");
+  for (const Row& row : rows) {
+    std::printf("  %-22s workers %2d batch %-3s %9.0f steps/s %7.3f episodes/s", row.name.c_str(),
+                row.workers, row.batch.c_str(), row.steps / row.seconds,
+                row.episodes / row.seconds);
+    if (row.batches > 0)
+      std::printf("  (mean batch %.2f, %.0f us of inference per row, busy %.0f%%)",
+                  static_cast<double>(row.batch_rows) / row.batches,
+                  1e6 * row.infer_s / static_cast<double>(row.batch_rows),
+                  100 * row.infer_s / row.seconds);
+    std::printf("\n");
+  }
+  std::printf("  ratio to the expert      %.3f (median of %d rounds)\n", ratio(0, 1), rounds);
+  if (rows.size() > 2)
+    std::printf("  speed-up over batch off  %.2f (median of %d rounds)\n", ratio(0, 2), rounds);
 }
 
 void bench_infer(const std::string& checkpoint, const std::vector<int>& slots, int rounds,

@@ -21,6 +21,16 @@ void bench_world(const Settings& s, long steps, int slices, bool json,
 void bench_eval(Settings s, const std::string& agent_name, const std::string& checkpoint,
                 const std::string& suite_name, int episodes, bool json, bool profile = false);
 
+// The same at `workers` worlds, as `eval` runs them (worker processes; eval.batch as set):
+// the first `episodes` tasks of a suite evaluated `rounds` times, each round the agent, then
+// the expert, then (baseline_workers > 0) the agent with eval.batch = "off" at baseline_workers
+// workers, today's unbatched evaluation; each into a fresh temporary folder. Steps/s and
+// episodes/s (wall time of the whole evaluation, worker start included), the agent's ratio to
+// the expert and to the baseline, and the batched inference's mean batch.
+void bench_eval_workers(Settings s, const std::string& agent_name, const std::string& checkpoint,
+                        const std::string& suite_name, int episodes, int workers, int rounds,
+                        int baseline_workers, bool json);
+
 // Inference alone: a learned agent's network on seeded random observations, one row at a time
 // (closed loop today) against batches of each size in `slots` (PolicyRunner's fixed slots),
 // interleaved round by round; observations/s and the ratio to one row at a time. `threads`:

@@ -10,6 +10,7 @@
 #include "bench/train_bench.hpp"
 #include "cli/commands.hpp"
 #include "cli/common.hpp"
+#include "core/error.hpp"
 #include "mujoco/bench.hpp"
 
 namespace cd::cli {
@@ -54,7 +55,24 @@ void add_bench(CLI::App& app) {
   ev->add_flag("--profile", *profile,
                "also say where a step's time goes: the agent's sensor (BEV and history), its "
                "act (inference), the world's step, the scorer, the rest");
+  auto workers = std::make_shared<int>(0);
+  auto eval_rounds = std::make_shared<int>(3);
+  auto baseline = std::make_shared<int>(2);
+  ev->add_option("--workers", *workers,
+                 "0 (default): one process, episode by episode; N: whole evaluations at N "
+                 "workers as `eval` runs them (eval.batch as configured), each round the agent, "
+                 "the expert and the baseline");
+  ev->add_option("--rounds", *eval_rounds, "with --workers: rounds")->check(CLI::PositiveNumber);
+  ev->add_option("--baseline-workers", *baseline,
+                 "with --workers: the agent with eval.batch = \"off\" at this many workers "
+                 "(today's evaluation) in each round; 0 leaves it out");
   ev->callback([=] {
+    if (*workers > 0) {
+      if (*profile) throw ConfigError("bench eval: --profile runs in one process (no --workers)");
+      bench_eval_workers(settings_from(*config), *agent, *checkpoint, *suite, *episodes,
+                         *workers, *eval_rounds, *baseline, *json);
+      return;
+    }
     bench_eval(settings_from(*config), *agent, *checkpoint, *suite, *episodes, *json, *profile);
   });
 

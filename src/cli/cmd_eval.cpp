@@ -51,6 +51,7 @@ void eval_mujoco(const EvalArgs& a) {
   o.quiet = a.quiet;
   o.device = a.device.empty() ? s.eval.device : a.device;
   o.record = a.record;
+  o.batch = s.eval.batch;
   const mj::EvalReport r = mj::evaluate(o);
   if (!mpi_lead()) return;  // under MPI rank 0 reports the job
   std::printf("%s", mj::eval_table(r.results).c_str());

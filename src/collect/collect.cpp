@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -14,6 +15,8 @@
 #include "core/error.hpp"
 #include "core/fault.hpp"
 #include "core/job.hpp"
+#include "device/device.hpp"
+#include "inference/batched_inference.hpp"
 #include "data/h5_io.hpp"
 #include "data/h5_episode.hpp"
 #include "runs/record.hpp"
@@ -139,6 +142,12 @@ CollectReport collect(const Settings& settings, const CollectOptions& options) {
     nlohmann::json manifest = {{"settings", settings_to_json(settings)}, {"episodes", summary}};
     write_file_atomic(out + "/collect.json", manifest.dump(2) + "\n");
   };
+  std::optional<InputFormat> policy;
+  if (!options.policy_checkpoint.empty()) policy = require_checkpoint(options.policy_checkpoint).input;
+  const std::unique_ptr<BatchedInference> inference =
+      start_job_inference(spec, settings.eval.batch,
+                          resolve_device(settings.eval.device, "eval.device"),
+                          policy ? &*policy : nullptr);
   const JobResult job = run_job(spec, write_manifest);
   report.frames = job.units;
   report.recorded_now = job.run_now;

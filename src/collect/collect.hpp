@@ -17,6 +17,9 @@ struct CollectOptions {
   // Set: each episode is driven by the driver it makes (made in the episode's worker), with
   // the expert's labels recorded (dagger's rollouts).
   std::function<std::unique_ptr<Driver>()> driver;
+  // The run folder of the policy the driver runs, if any (dagger's rollouts): its network is
+  // served to the workers by batched inference as eval.batch says (batched_inference.hpp).
+  std::string policy_checkpoint;
 };
 
 struct CollectReport {

@@ -9,6 +9,7 @@
 //                      failure, which the runner retries)
 //   eval-recorded:<i>  eval has written episode i's record: the command dies with its workers
 //   collect:<i>        collect has committed episode i: the command dies with its workers
+//   inference:<n>      batched inference's process starts its batch n (0-based): it dies alone
 //   train:<n>          the training loop has committed epoch n (every method): the command dies
 //                      (no marker: it dies there on every run while the variable is set)
 // Without :always only the first time counts: a marker file <marker_dir>/.crash-injected-

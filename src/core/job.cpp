@@ -51,7 +51,7 @@ JobResult run_job(const JobSpec& spec, const std::function<void(const JobResult&
   } else {
     result.pool = run_worker_pool_with_retries(spec.workers, result.todo, spec.attempts,
                                                spec.setup ? spec.setup : [] {}, spec.run,
-                                               on_done);
+                                               on_done, spec.after_attempt);
   }
   if (progress) progress->finish();
 

@@ -29,6 +29,9 @@ struct JobSpec {
   bool in_process = false;               // one after another here (a Python agent): no fork
   std::function<void()> setup;           // once per worker before its first item (may be empty)
   std::function<std::string(int)> run;   // item i in a fork of the worker: its one-line note
+  // After each attempt of the workers (not in process): may throw to stop the job before its
+  // summary (batched inference's check that its inference process still runs).
+  std::function<void()> after_attempt;
   // Item i finished (this rank's items, in this process): the units its note counts (frames,
   // steps) and the progress note.
   std::function<long(int, const std::string&, std::string* progress_note)> done;

@@ -20,6 +20,8 @@ namespace cd {
 
 namespace {
 
+int this_worker = -1;  // worker_index()
+
 void send_line(int fd, std::string line) {
   std::replace(line.begin(), line.end(), '\n', ' ');
   line += "\n";
@@ -69,6 +71,8 @@ void send_line(int fd, std::string line) {
 
 }  // namespace
 
+int worker_index() { return this_worker; }
+
 PoolReport run_worker_pool(int workers, const std::vector<int>& todo,
                            const std::function<void()>& setup,
                            const std::function<std::string(int)>& job,
@@ -90,6 +94,7 @@ PoolReport run_worker_pool(int workers, const std::vector<int>& todo,
       prctl(PR_SET_PDEATHSIG, SIGKILL);
       if (getppid() != parent) _exit(1);
       close(fds[0]);
+      this_worker = w;
       worker_main(mine, setup, job, fds[1]);
     }
     pids.push_back(pid);
@@ -143,7 +148,8 @@ PoolReport run_worker_pool(int workers, const std::vector<int>& todo,
 PoolReport run_worker_pool_with_retries(
     int workers, const std::vector<int>& todo, int attempts, const std::function<void()>& setup,
     const std::function<std::string(int)>& job,
-    const std::function<void(int, const std::string&)>& on_done) {
+    const std::function<void(int, const std::string&)>& on_done,
+    const std::function<void()>& after_attempt) {
   PoolReport report;
   report.failed = todo;
   if (mpi_distributed()) {
@@ -158,6 +164,7 @@ PoolReport run_worker_pool_with_retries(
   }
   for (int attempt = 0; attempt < attempts && !report.failed.empty(); ++attempt) {
     PoolReport run = run_worker_pool(workers, report.failed, setup, job, on_done);
+    if (after_attempt) after_attempt();
     if (!run.first_error.empty()) report.first_error = run.first_error;
     report.failed = run.failed;
     report.errors = run.errors;  // the last attempt's, of what still failed

@@ -30,15 +30,21 @@ PoolReport run_worker_pool(int workers, const std::vector<int>& todo,
                            const std::function<std::string(int)>& job,
                            const std::function<void(int, const std::string&)>& on_done);
 
+// In a worker of run_worker_pool (and the forks of its jobs): its number, 0 to workers - 1;
+// -1 in any other process.
+int worker_index();
+
 // run_worker_pool up to `attempts` times: a job whose worker crashed (the infrastructure's
 // fault, not the job's) is run again. `failed` lists what still failed after the last
 // attempt; first_error is the last attempt's first error that was seen.
 // Under MPI (core/mpi.hpp) every rank calls it: rank 0's `todo` is split over the ranks (one
 // worker each), and every rank returns the whole job's failures, each error naming the rank and
-// host where it happened; on_done sees this rank's jobs only.
+// host where it happened; on_done sees this rank's jobs only. `after_attempt`, when set, runs
+// here after each attempt and may throw to stop the job (a dead inference process).
 PoolReport run_worker_pool_with_retries(
     int workers, const std::vector<int>& todo, int attempts, const std::function<void()>& setup,
     const std::function<std::string(int)>& job,
-    const std::function<void(int, const std::string&)>& on_done);
+    const std::function<void(int, const std::string&)>& on_done,
+    const std::function<void()>& after_attempt = {});
 
 }  // namespace cd

@@ -9,10 +9,18 @@
 #include "nn/policy_nets.hpp"
 #include "sense/camera.hpp"
 #include "device/device.hpp"
+#include "inference/batched_inference.hpp"
+#include "nn/kernels.hpp"
 
 namespace cd {
 
 void set_torch_threads(int threads) { torch::set_num_threads(std::max(1, threads)); }
+
+namespace {
+bool invariant_inference = true;
+}
+void set_batch_invariant_inference(bool on) { invariant_inference = on; }
+bool batch_invariant_inference() { return invariant_inference; }
 
 void require_same_frames(const EpisodeSet& set, const InputFormat& in, const std::string& dir) {
   if (set.channels != in.channels || set.height != in.height || set.width != in.width)
@@ -24,6 +32,7 @@ void require_same_frames(const EpisodeSet& set, const InputFormat& in, const std
 
 struct PolicyRunner::Impl {
   Checkpoint ck;
+  std::string remote_key;  // what the inference process loads: dir, method, weights, device
   std::unique_ptr<PolicyNets> nets;
   std::vector<float> action;
   std::vector<float> learned;  // signed pedals: the network's output before decoding
@@ -57,6 +66,7 @@ PolicyRunner::PolicyRunner(const std::string& dir, const std::string& expected_m
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
   m.wanted_device = device;
+  m.remote_key = dir + "\n" + expected_method + "\n" + weights_file + "\n" + device;
   m.ck = require_checkpoint(dir);
   if (!expected_method.empty() && m.ck.method != expected_method)
     throw ConfigError("checkpoint " + dir + " was trained with method '" + m.ck.method +
@@ -203,6 +213,12 @@ PolicyStep PolicyRunner::Impl::step(const float* v, int64_t n, bool target_speed
 
 PolicyStep PolicyRunner::run(const uint8_t* const* frames, double speed, int command,
                              const float* previous) {
+  Impl& m = *impl_;
+  PolicyStep step;
+  if (m.slots == 0 && invariant_inference &&
+      remote_policy_run(m.remote_key, frames, m.ck.input.history, m.frame_values, speed, command,
+                        previous, m.ck.input.action_dim, &step, &m.action))
+    return step;
   return run_batch({PolicyInput{frames, speed, command, previous}}).front();
 }
 
@@ -221,6 +237,7 @@ std::vector<PolicyStep> PolicyRunner::run_batch(const std::vector<PolicyInput>& 
   std::vector<PolicyStep> steps;
   if (actions) actions->clear();
   torch::InferenceMode inference;
+  BatchInvariantKernels kernels(invariant_inference);
   for (int first = 0; first < n; first += chunk) {
     const int used = std::min(chunk, n - first);
     m.resize(chunk);

@@ -42,6 +42,14 @@ void require_same_frames(const EpisodeSet& set, const InputFormat& in, const std
 // torch's intra-op threads for this process (closed loop: 1, one worker process per core).
 void set_torch_threads(int threads);
 
+// Whether PolicyRunner's forward passes run on batch-invariant kernels (nn/kernels.hpp), for
+// this process and the processes it forks: true (the default) gives every row of a batch the
+// bytes it gets alone at batch 1 (what the inference process relies on,
+// inference/batched_inference.hpp); false runs libtorch's own choice for the batch (bench and
+// tests measure it). One row alone gets the same bytes either way.
+void set_batch_invariant_inference(bool on);
+bool batch_invariant_inference();
+
 // One observation of run_batch(): as run()'s arguments.
 struct PolicyInput {
   const uint8_t* const* frames = nullptr;
@@ -77,6 +85,8 @@ class PolicyRunner {
   // residual controller reads it (a_{t-1} + the predicted residual); null means zeros.
   PolicyStep run(const uint8_t* const* frames, double speed, int command,
                  const float* previous = nullptr);
+  // In a world process connected to batched inference (inference/batched_inference.hpp), run()
+  // sends the observation to the inference process (same bytes, batch-invariant kernels).
   // run() on several observations (one row each, in order); `actions`, when given, receives
   // each row's last_action(). last_action() is then the last row's.
   // Slots 0 (the default): one forward pass of exactly these rows. A row's action can then

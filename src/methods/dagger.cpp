@@ -164,6 +164,7 @@ Rollouts driving_rollouts(const Settings& settings, int i, const std::string& po
   co.driver = [policy, settings, beta] {
     return std::make_unique<DaggerDriver>(policy, settings, beta);
   };
+  co.policy_checkpoint = policy;
   collect(cs, co);
   Rollouts r;
   for (const std::string& f : list_episode_files(out)) {
@@ -196,6 +197,9 @@ Rollouts mujoco_rollouts(const Settings& settings, const std::string& data_dir, 
   o.quiet = quiet;
   const std::string env = first.env;
   o.driver = [policy, env, beta] { return std::make_unique<MujocoDaggerDriver>(policy, env, beta); };
+  o.policy_checkpoint = policy;
+  o.batch = settings.eval.batch;
+  o.device = "cpu";  // MujocoDaggerDriver's FramePolicy runs on the CPU
   mj::collect(o);
   Rollouts r;
   for (const std::string& f : list_episode_files(out)) {

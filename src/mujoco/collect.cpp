@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
 
 #include <nlohmann/json.hpp>
 
@@ -14,6 +15,7 @@
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
 #include "core/job.hpp"
+#include "inference/batched_inference.hpp"
 #include "data/h5_io.hpp"
 #include "mujoco/episode_note.hpp"
 
@@ -171,6 +173,10 @@ CollectReport collect(const CollectOptions& o) {
                                {"noise", o.noise.enabled}};
     write_file_atomic(o.out + "/collect.json", manifest.dump(2) + "\n");
   };
+  std::optional<InputFormat> policy;
+  if (!o.policy_checkpoint.empty()) policy = require_checkpoint(o.policy_checkpoint).input;
+  const std::unique_ptr<BatchedInference> inference =
+      start_job_inference(spec, o.batch, o.device, policy ? &*policy : nullptr);
   const JobResult job = run_job(spec, write_manifest);
   report.frames = job.units;
   report.recorded_now = job.run_now;

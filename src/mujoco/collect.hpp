@@ -46,6 +46,11 @@ struct CollectOptions {
   std::string expert_policies;  // non-empty: the expert is <env>.pt there (make_expert)
   // Made once per episode (in its worker) when set; noise injection must then be off.
   std::function<std::unique_ptr<Driver>()> driver;
+  // The run folder of the policy the driver runs, if any (dagger's rollouts), and eval.batch:
+  // its network is then served to the workers by batched inference (batched_inference.hpp).
+  std::string policy_checkpoint;
+  std::string batch = "auto";
+  std::string device = "cpu";  // where that network runs (eval.device, resolved)
   bool quiet = false;
 };
 

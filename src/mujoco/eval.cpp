@@ -18,6 +18,7 @@
 #include "core/error.hpp"
 #include "core/rng.hpp"
 #include "core/job.hpp"
+#include "inference/batched_inference.hpp"
 #include "data/mujoco_episode.hpp"
 #include "datasets/episode_set.hpp"
 #include "inference/policy_runner.hpp"
@@ -265,7 +266,7 @@ EvalReport evaluate(const EvalOptions& o) {
   Checkpoint ck;
   validate(o, &ck);
   const std::string ep_dir = o.out + "/episodes";
-  const json run = {{"agent", o.agent},
+  json run = {{"agent", o.agent},
                     {"label", o.label.empty() ? o.agent : o.label},
                     {"env", o.env},
                     {"checkpoint", o.checkpoint},
@@ -280,9 +281,11 @@ EvalReport evaluate(const EvalOptions& o) {
   spec.subfolders = {"episodes"};
   // Folders written before the device was recorded ran on the CPU.
   spec.claim = [&] {
-    claim_eval_folder(o.out, run, {"agent", "env", "checkpoint", "seed", "max_steps", "device"},
+    claim_eval_folder(o.out, run,
+                      {"agent", "env", "checkpoint", "seed", "max_steps", "device", "inference"},
                       [](json& prev) {
                         if (!prev.contains("device")) prev["device"] = "cpu";
+                        if (!prev.contains("inference")) prev["inference"] = "batch-1";
                       });
   };
   spec.total = o.episodes;
@@ -361,6 +364,9 @@ EvalReport evaluate(const EvalOptions& o) {
     report.results["copycat"] = copycat;
     write_file_atomic(o.out + "/results.json", report.results.dump(2) + "\n");
   };
+  const std::unique_ptr<BatchedInference> inference =
+      start_job_inference(spec, o.batch, device, is_policy(o.agent) ? &ck.input : nullptr);
+  run["inference"] = inference_record(inference.get(), device);
   const JobResult job = run_job(spec, write_results);
   report.steps = job.units;
   report.run_now = job.run_now;

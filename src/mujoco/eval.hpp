@@ -51,6 +51,7 @@ struct EvalOptions {
   std::string expert_policies;  // non-empty: --agent expert is <env>.pt there (make_expert)
   bool quiet = false;
   std::string device = "cpu";  // where a family policy's networks run (eval.device)
+  std::string batch = "auto";  // eval.batch: the inference process (batched_inference.hpp)
   // Also write episodes/episode_NNNNNN.h5 (SPEC section 8's layout): the episode as the agent
   // drove it, for the replays of `report --html`.
   bool record = false;

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "core/error.hpp"
+#include "nn/kernels.hpp"
 
 namespace cd {
 
@@ -78,10 +79,10 @@ SmallBackboneImpl::SmallBackboneImpl(int in_channels, int height, int width, int
 
 torch::Tensor SmallBackboneImpl::forward(torch::Tensor x) { return features_of(feature_map(x)); }
 
-torch::Tensor SmallBackboneImpl::feature_map(torch::Tensor x) { return convs->forward(x); }
+torch::Tensor SmallBackboneImpl::feature_map(torch::Tensor x) { return sequential_forward(*convs, x); }
 
 torch::Tensor SmallBackboneImpl::features_of(torch::Tensor map) {
-  return torch::relu(fc->forward(map.flatten(1)));
+  return torch::relu(linear_forward(*fc, map.flatten(1)));
 }
 
 BasicBlockImpl::BasicBlockImpl(int in, int out, int stride)
@@ -100,9 +101,9 @@ BasicBlockImpl::BasicBlockImpl(int in, int out, int stride)
 }
 
 torch::Tensor BasicBlockImpl::forward(torch::Tensor x) {
-  torch::Tensor y = torch::relu(bn1->forward(conv1->forward(x)));
-  y = bn2->forward(conv2->forward(y));
-  return torch::relu(y + (downsample ? downsample->forward(x) : x));
+  torch::Tensor y = torch::relu(bn1->forward(conv_forward(*conv1, x)));
+  y = bn2->forward(conv_forward(*conv2, y));
+  return torch::relu(y + (downsample ? sequential_forward(*downsample, x) : x));
 }
 
 ResNet34BackboneImpl::ResNet34BackboneImpl(int in_channels, int features) {
@@ -128,12 +129,12 @@ ResNet34BackboneImpl::ResNet34BackboneImpl(int in_channels, int features) {
 torch::Tensor ResNet34BackboneImpl::forward(torch::Tensor x) { return features_of(feature_map(x)); }
 
 torch::Tensor ResNet34BackboneImpl::feature_map(torch::Tensor x) {
-  return layers->forward(stem->forward(x));
+  return sequential_forward(*layers, sequential_forward(*stem, x));
 }
 
 torch::Tensor ResNet34BackboneImpl::features_of(torch::Tensor map) {
   torch::Tensor f = map.mean({2, 3});
-  return proj ? torch::relu(proj->forward(f)) : f;
+  return proj ? torch::relu(linear_forward(*proj, f)) : f;
 }
 
 int PolicyNetImpl::action_dim() const {
@@ -198,9 +199,9 @@ PolicyOutput PolicyNetImpl::forward(const torch::Tensor& image, const torch::Ten
   PolicyOutput out;
   out.feature_map = map;
   out.feature = f;
-  if (with_speed) out.speed = speed_head->forward(f);
+  if (with_speed) out.speed = sequential_forward(*speed_head, f);
   std::vector<torch::Tensor> joined = {f};
-  if (!linear_head) joined.push_back(measurement->forward(speed));
+  if (!linear_head) joined.push_back(sequential_forward(*measurement, speed));
   if (options_.extra_features > 0) {
     if (!extra.defined() || extra.size(1) != options_.extra_features)
       throw Error("policy network: expected an extra feature of width " +
@@ -208,22 +209,29 @@ PolicyOutput PolicyNetImpl::forward(const torch::Tensor& image, const torch::Ten
     joined.push_back(extra);
   }
   torch::Tensor j = linear_head ? (joined.size() == 1 ? f : torch::cat(joined, 1))
-                                : fusion->forward(torch::cat(joined, 1));
+                                : sequential_forward(*fusion, torch::cat(joined, 1));
   out.embedding = j;
   out.action = act(j, command);
   return out;
 }
 
 torch::Tensor PolicyNetImpl::act(const torch::Tensor& j, const torch::Tensor& command) {
-  if (linear_head) return squash(linear_head->forward(j));
+  if (linear_head) return squash(linear_forward(*linear_head, j));
   const int64_t B = j.size(0);
-  if (B == 1 && !is_training()) {
-    // Closed loop: run only the commanded branch.
-    int64_t c = std::clamp<int64_t>(command.item<int64_t>(), 0, kBranches - 1);
-    return squash(branches[c]->as<nn::Sequential>()->forward(j));
+  auto branch = [&](int64_t b) -> torch::nn::SequentialImpl& {
+    return *branches[static_cast<size_t>(b)]->as<nn::Sequential>();
+  };
+  if (!is_training() && (B == 1 || batch_invariant_kernels())) {
+    // Closed loop: each row through its commanded branch only (one row at a time when the
+    // kernels are batch-invariant, which is what their linear layers do anyway).
+    const torch::Tensor c = command.clamp(0, kBranches - 1).to(torch::kCPU);
+    std::vector<torch::Tensor> rows;
+    for (int64_t r = 0; r < B; ++r)
+      rows.push_back(sequential_forward(branch(c[r].item<int64_t>()), j.narrow(0, r, 1)));
+    return squash(B == 1 ? rows.front() : torch::cat(rows, 0));
   }
   std::vector<torch::Tensor> all;
-  for (int b = 0; b < kBranches; ++b) all.push_back(branches[b]->as<nn::Sequential>()->forward(j));
+  for (int b = 0; b < kBranches; ++b) all.push_back(sequential_forward(branch(b), j));
   torch::Tensor stacked = torch::stack(all, 1);  // B x 4 x A
   torch::Tensor index =
       command.clamp(0, kBranches - 1).view({B, 1, 1}).expand({B, 1, stacked.size(2)});

@@ -1,6 +1,7 @@
 #include "nn/policy_nets.hpp"
 
 #include "core/error.hpp"
+#include "nn/kernels.hpp"
 
 namespace cd {
 
@@ -121,7 +122,7 @@ torch::Tensor PolicyNets::squash(const torch::Tensor& raw) const {
 }
 
 torch::Tensor PolicyNets::control(const torch::Tensor& memory_feature) {
-  return squash(controller->forward(memory_feature));
+  return squash(sequential_forward(*controller, memory_feature));
 }
 
 }  // namespace cd

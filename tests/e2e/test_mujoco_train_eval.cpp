@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <algorithm>
 #include <vector>
 
 #include "../support/fake_episodes.hpp"
@@ -87,6 +88,25 @@ TEST_F(MujocoTrainEval, EvalWritesResultsAndIsSeeded) {
   const std::string before = test::read_text(*dir_ / "eval_bc-oh/results.json");
   test::run_cli_ok(eval("bc-oh", "eval_bc-oh"));
   EXPECT_EQ(before, test::read_text(*dir_ / "eval_bc-oh/results.json"));
+}
+
+// Batched inference (eval.batch = "on"): three worlds served by one inference process give
+// the bytes of one world running its network itself.
+TEST_F(MujocoTrainEval, ServedWorldsGiveTheBytesOfOneWorld) {
+  for (const char* batch : {"on", "off"}) {
+    const std::string cfg = *dir_ / (std::string("batch-") + batch + ".toml");
+    test::write_text(cfg, std::string("[eval]\nbatch = \"") + batch + "\"\n");
+    for (const char* workers : {"1", "3"}) {
+      std::vector<std::string> a = eval("residual", std::string("served_") + batch + workers);
+      a.insert(a.end(), {"--config", cfg, "--workers", workers});
+      a[std::find(a.begin(), a.end(), "--episodes") - a.begin() + 1] = "3";
+      test::run_cli_ok(a);
+    }
+  }
+  const std::string one = test::read_text(*dir_ / "served_off1/results.json");
+  EXPECT_EQ(test::read_json(*dir_ / "served_off1/results.json")["episodes"].size(), 3u);
+  for (const char* other : {"served_on3", "served_on1", "served_off3"})
+    EXPECT_EQ(test::read_text(*dir_ / (std::string(other) + "/results.json")), one) << other;
 }
 
 TEST_F(MujocoTrainEval, RandomAgentHasNoExpertData) {

@@ -1,6 +1,7 @@
 // PolicyRunner::run_batch (issue 46's batched inference): several observations in one forward
-// pass. Whether a row's action depends on the batch it ran in is measured (printed) without
-// slots, and must not with fixed slots: any slot, any companions, any number of inputs.
+// pass. On libtorch's own kernels whether a row's action depends on the batch it ran in is
+// measured (printed) without slots, and must not with fixed slots; on the batch-invariant
+// kernels (the default) it must not at any batch size: any row, any companions.
 #include <gtest/gtest.h>
 
 #include <torch/torch.h>
@@ -48,11 +49,58 @@ bool same_bits(const std::vector<float>& a, const std::vector<float>& b) {
 
 class PolicyBatch : public ::testing::TestWithParam<std::string> {};
 
-// Without slots a row's action depends on the batch size: measured, not asserted (it is
-// libtorch's choice of kernel). With fixed slots it depends on the observation alone: any slot,
-// any companions, any number of inputs.
+// Restores the default kernels when a test ends.
+struct KernelsAtDefault {
+  ~KernelsAtDefault() { set_batch_invariant_inference(true); }
+};
+
+// The default: on the batch-invariant kernels a row's action is the one run() gives it alone,
+// in a batch of any size, in any row, beside any companions; bench infer's batched passes and
+// the inference process rely on it. And those are the bytes of libtorch's own kernels at batch
+// 1, the closed loop's before batched inference (eval.batch = "off").
+TEST_P(PolicyBatch, OnBatchInvariantKernelsARowsActionIsItsObservationsAlone) {
+  torch::set_num_threads(1);
+  KernelsAtDefault restore;
+  ASSERT_TRUE(batch_invariant_inference());
+  TempDir dir("cd-policy-batch");
+  test::write_fake_folder(dir / "data", 3, {.frames = 40});
+  const std::string run = test::train_tiny_run(dir, GetParam(), GetParam());
+  PolicyRunner runner(run);
+  const EpisodeSet set = load_episode_set(dir / "data");
+  const int n = 17;
+  Observations obs(set, runner, n);
+  std::vector<std::vector<float>> alone;
+  for (const PolicyInput& in : obs.inputs) {
+    runner.run(in.frames, in.speed, in.command);
+    alone.push_back(runner.last_action());
+  }
+  set_batch_invariant_inference(false);
+  for (int i = 0; i < n; ++i) {
+    runner.run(obs.inputs[i].frames, obs.inputs[i].speed, obs.inputs[i].command);
+    EXPECT_TRUE(same_bits(runner.last_action(), alone[i])) << "batch 1, row " << i;
+  }
+  set_batch_invariant_inference(true);
+  for (int size : {2, 4, 5, 9, 16, n}) {
+    for (int shift : {0, 3}) {
+      std::vector<PolicyInput> batch;
+      for (int r = 0; r < size; ++r) batch.push_back(obs.inputs[(r + shift) % n]);
+      std::vector<std::vector<float>> got;
+      runner.run_batch(batch, &got);
+      ASSERT_EQ(got.size(), static_cast<size_t>(size));
+      for (int r = 0; r < size; ++r)
+        EXPECT_TRUE(same_bits(got[r], alone[(r + shift) % n]))
+            << "batch " << size << " shift " << shift << " row " << r;
+    }
+  }
+}
+
+// On libtorch's own kernels (eval.batch = "off") and without slots a row's action depends on
+// the batch size: measured, not asserted (it is libtorch's choice of kernel). With fixed slots
+// it depends on the observation alone: any slot, any companions, any number of inputs.
 TEST_P(PolicyBatch, WithFixedSlotsARowsActionDependsOnItsObservationAlone) {
   torch::set_num_threads(1);
+  KernelsAtDefault restore;
+  set_batch_invariant_inference(false);
   TempDir dir("cd-policy-batch");
   test::write_fake_folder(dir / "data", 3, {.frames = 40});
   const std::string run = test::train_tiny_run(dir, GetParam(), GetParam());
