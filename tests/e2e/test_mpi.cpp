@@ -106,6 +106,22 @@ TEST_F(MpiJobs, EvalAndCollectOnThreeRanksWriteTheBytesOfTwoWorkers) {
   EXPECT_TRUE(x == y) << "collect's episodes under mpirun differ from --workers 2";
 }
 
+// A learned agent: on 2 ranks each world runs its network itself, served by one inference
+// process (eval.batch = "on") 3 worlds share it; the same bytes (batch-invariant kernels).
+TEST_F(MpiJobs, ALearnedAgentOnTwoRanksWritesTheBytesOfServedWorlds) {
+  CD_NEEDS_SUMO();
+  test::TinyRun run({.method = "bc-oh",
+                     .traffic = "regular",
+                     .extra = "\n[train]\nepochs = 1\nmax_samples = 300\nthreads = 1\n"
+                              "\n[eval]\nbatch = \"on\"\n"});
+  run.eval("served", 3, "quickstart");
+  auto m = mpirun(2, test::eval_args(run.config(), "bc-oh", run.run(), "quickstart",
+                                     run.dir() / "mpi", 1));
+  ASSERT_TRUE(m.exited && m.exit_code == 0) << m.describe();
+  EXPECT_EQ(test::read_text(run.dir() / "mpi/results.json"),
+            test::read_text(run.dir() / "served/results.json"));
+}
+
 TEST_F(MpiJobs, AKilledJobResumesUnderEitherLauncherToTheUninterruptedBytes) {
   CD_NEEDS_SUMO();
   const std::string cfg = test::write_test_config(dir, "regular");
