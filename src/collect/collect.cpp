@@ -144,10 +144,10 @@ CollectReport collect(const Settings& settings, const CollectOptions& options) {
   };
   std::optional<InputFormat> policy;
   if (!options.policy_checkpoint.empty()) policy = require_checkpoint(options.policy_checkpoint).input;
-  const std::unique_ptr<BatchedInference> inference =
-      start_job_inference(spec, settings.eval.batch,
-                          resolve_device(settings.eval.device, "eval.device"),
-                          policy ? &*policy : nullptr);
+  const std::unique_ptr<BatchedInference> inference = start_job_inference(
+      spec, settings.eval.batch,
+      policy ? resolve_device(settings.eval.device, "eval.device") : std::string("cpu"),
+      policy ? &*policy : nullptr);
   const JobResult job = run_job(spec, write_manifest);
   report.frames = job.units;
   report.recorded_now = job.run_now;
