@@ -308,6 +308,7 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
 
   std::vector<EpisodeResult> results(total);
   EvalReport report;
+  report.loop.profile = req.profile;
   // Episode i is trial i % trials of task i / trials.
   auto identify = [&](EpisodeResult& r, int i) {
     r.index = i;
@@ -354,6 +355,7 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
     // The agent is made after the fork: each episode starts from the same agent state.
     auto agent = new_agent(world.get());
     LoopStats stats;
+    stats.profile = req.profile;
     std::string trace;
     EpisodeData recording;
     const Task task = task_of(i);
@@ -379,13 +381,25 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
     }
     write_file_atomic(ep_dir + "/" + episode_record_name(i), episode_to_json(r).dump() + "\n");
     inject_crash("eval-recorded", i, out, CrashScope::ProcessGroup);
-    return std::to_string(stats.steps) + " " + r.outcome;
+    // The note: steps, outcome, the loop's seconds and (profile) its phases' seconds.
+    char timing[160];
+    std::snprintf(timing, sizeof timing, " %.9g %.9g %.9g %.9g %.9g", stats.seconds,
+                  stats.sense_s, stats.act_s, stats.world_s, stats.score_s);
+    return std::to_string(stats.steps) + " " + r.outcome + timing;
   };
-  spec.done = [](int i, const std::string& note, std::string* line) {
+  spec.done = [&report](int i, const std::string& note, std::string* line) {
     std::istringstream in(note);
     long steps = 0;
     std::string outcome;
-    in >> steps >> outcome;
+    LoopStats t;
+    in >> steps >> outcome >> t.seconds >> t.sense_s >> t.act_s >> t.world_s >> t.score_s;
+    LoopStats& sum = report.loop;
+    sum.steps += steps;
+    sum.seconds += t.seconds;
+    sum.sense_s += t.sense_s;
+    sum.act_s += t.act_s;
+    sum.world_s += t.world_s;
+    sum.score_s += t.score_s;
     *line = "episode " + std::to_string(i) + ": " + outcome;
     return steps;
   };

@@ -36,17 +36,8 @@ struct EvalRequest {
   // that cannot cross a fork: a Python callable). Episodes are reset the same way, so the
   // results are those of the worker processes.
   bool in_process = false;
-};
-
-struct EvalReport {
-  nlohmann::json results;  // what results.json holds
-  int run_now = 0;         // episodes run by this call (the rest were already recorded)
-  double seconds = 0;
-  long steps = 0;          // agent steps run by this call
-  // Batched inference (eval.batch): forward passes the inference process ran and the
-  // observations in them (0 when the worlds ran their networks themselves).
-  long batches = 0, batch_rows = 0;
-  double infer_s = 0;
+  // Each episode's loop timed by phase (LoopStats::profile), summed into EvalReport::loop.
+  bool profile = false;
 };
 
 // Work done by run_episode: agent steps and the wall time of the driving loop (observation,
@@ -60,6 +51,21 @@ struct LoopStats {
   bool profile = false;
   double sense_s = 0, act_s = 0, world_s = 0, score_s = 0;
 };
+
+struct EvalReport {
+  nlohmann::json results;  // what results.json holds
+  int run_now = 0;         // episodes run by this call (the rest were already recorded)
+  double seconds = 0;
+  long steps = 0;          // agent steps run by this call
+  // Batched inference (eval.batch): forward passes the inference process ran and the
+  // observations in them (0 when the worlds ran their networks themselves).
+  long batches = 0, batch_rows = 0;
+  double infer_s = 0;
+  // The episodes run by this call (this rank's, under MPI): their loops' steps and seconds,
+  // and with EvalRequest::profile, the seconds of each phase.
+  LoopStats loop;
+};
+
 
 // What an episode's record says of the episode as it runs, for any loop that drives a World:
 // made after World::reset (and any prefill), told every step's result, then finished with the

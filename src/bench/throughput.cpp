@@ -126,6 +126,28 @@ void bench_world(const Settings& s, long steps, int slices, bool json, const std
   }
 }
 
+// Microseconds per step of each phase of a loop's profile; "other" is the loop's rest
+// (recording, bookkeeping).
+nlohmann::json phases(const LoopStats& t) {
+  const double us = 1e6 / static_cast<double>(std::max<long>(1, t.steps));
+  return nlohmann::json{{"sense_us", t.sense_s * us}, {"act_us", t.act_s * us},
+                        {"world_us", t.world_s * us}, {"score_us", t.score_s * us},
+                        {"other_us", (t.seconds - t.sense_s - t.act_s - t.world_s -
+                                      t.score_s) * us},
+                        {"step_us", t.seconds * us}};
+}
+
+void print_phases_header() {
+  std::printf("  us per step    sense      act    world    score    other    total\n");
+}
+void print_phases(const std::string& name, const LoopStats& t) {
+  const nlohmann::json p = phases(t);
+  std::printf("  %-10s %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f\n", name.c_str(),
+              p["sense_us"].get<double>(), p["act_us"].get<double>(),
+              p["world_us"].get<double>(), p["score_us"].get<double>(),
+              p["other_us"].get<double>(), p["step_us"].get<double>());
+}
+
 // Closed-loop steps/s of an agent (observation history, inference, control, SUMO step,
 // checks) on the first tasks of a suite, in this process, interleaved with the expert:
 // episode i of the agent, then episode i of the expert on the same task, and so on.
@@ -158,15 +180,6 @@ void bench_eval(Settings s, const std::string& agent_name, const std::string& ch
       total->score_s += one->score_s;
     }
   }
-  // Microseconds per step of each phase; "other" is the loop's rest (recording, bookkeeping).
-  auto phases = [](const LoopStats& t) {
-    const double us = 1e6 / static_cast<double>(std::max<long>(1, t.steps));
-    return nlohmann::json{{"sense_us", t.sense_s * us}, {"act_us", t.act_s * us},
-                          {"world_us", t.world_s * us}, {"score_us", t.score_s * us},
-                          {"other_us", (t.seconds - t.sense_s - t.act_s - t.world_s -
-                                        t.score_s) * us},
-                          {"step_us", t.seconds * us}};
-  };
   const double rate = m.steps_b / m.seconds_b, expert_rate = m.steps_a / m.seconds_a;
   if (json) {
     nlohmann::json j = {{"agent", agent_name},       {"suite", suite.name},
@@ -184,22 +197,16 @@ void bench_eval(Settings s, const std::string& agent_name, const std::string& ch
     std::printf("  %-10s %10.0f steps/s  (%ld steps)\n", "expert", expert_rate, m.steps_a);
     m.print_spread();
     if (profile) {
-      std::printf("  us per step    sense      act    world    score    other    total\n");
-      for (auto [name, t] : {std::pair{agent_name, &agent_total},
-                             std::pair{std::string("expert"), &expert_total}}) {
-        const nlohmann::json p = phases(*t);
-        std::printf("  %-10s %8.1f %8.1f %8.1f %8.1f %8.1f %8.1f\n", name.c_str(),
-                    p["sense_us"].get<double>(), p["act_us"].get<double>(),
-                    p["world_us"].get<double>(), p["score_us"].get<double>(),
-                    p["other_us"].get<double>(), p["step_us"].get<double>());
-      }
+      print_phases_header();
+      print_phases(agent_name, agent_total);
+      print_phases("expert", expert_total);
     }
   }
 }
 
 void bench_eval_workers(Settings s, const std::string& agent_name, const std::string& checkpoint,
                         const std::string& suite_name, int episodes, int workers, int rounds,
-                        int baseline_workers, bool json) {
+                        int baseline_workers, bool json, bool profile) {
   if (workers < 1 || rounds < 1 || episodes < 1 || baseline_workers < 0)
     throw ConfigError("bench eval: --workers, --rounds and --episodes must be >= 1");
   Suite suite = load_suite(suite_name);
@@ -224,6 +231,7 @@ void bench_eval_workers(Settings s, const std::string& agent_name, const std::st
     long steps = 0, episodes = 0, batches = 0, batch_rows = 0;
     double seconds = 0, infer_s = 0;
     std::vector<double> rates;  // steps/s per round
+    LoopStats loop;             // the worlds' loops, summed over the rounds
   };
   std::vector<Row> rows = {{agent_name, agent_name, checkpoint, s.eval.batch, workers},
                            {"expert", "expert", "", s.eval.batch, workers}};
@@ -240,6 +248,7 @@ void bench_eval_workers(Settings s, const std::string& agent_name, const std::st
       req.agent = row.agent;
       req.checkpoint = row.checkpoint;
       req.quiet = true;
+      req.profile = profile;
       const auto t0 = std::chrono::steady_clock::now();
       const EvalReport rep = run_eval(e, req);
       const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -249,6 +258,13 @@ void bench_eval_workers(Settings s, const std::string& agent_name, const std::st
       row.batches += rep.batches;
       row.batch_rows += rep.batch_rows;
       row.infer_s += rep.infer_s;
+      for (auto [sum, one] : {std::pair{&row.loop.seconds, rep.loop.seconds},
+                              std::pair{&row.loop.sense_s, rep.loop.sense_s},
+                              std::pair{&row.loop.act_s, rep.loop.act_s},
+                              std::pair{&row.loop.world_s, rep.loop.world_s},
+                              std::pair{&row.loop.score_s, rep.loop.score_s}})
+        *sum += one;
+      row.loop.steps += rep.loop.steps;
       row.rates.push_back(static_cast<double>(rep.steps) / sec);
     }
   auto ratio = [&](size_t a, size_t b) {  // median over rounds of row a's steps/s over row b's
@@ -265,6 +281,7 @@ void bench_eval_workers(Settings s, const std::string& agent_name, const std::st
                           {"episodes_per_s", row.episodes / row.seconds}};
       o["batches"] = row.batches;
       if (row.batch_rows > 0) o["infer_us_per_row"] = 1e6 * row.infer_s / row.batch_rows;
+      if (profile) o["profile"] = phases(row.loop);
       if (row.batches > 0) o["mean_batch"] = static_cast<double>(row.batch_rows) / row.batches;
       j[k == 0 ? "agent" : k == 1 ? "expert" : "baseline"] = o;
     }
@@ -287,6 +304,18 @@ void bench_eval_workers(Settings s, const std::string& agent_name, const std::st
                   1e6 * row.infer_s / static_cast<double>(row.batch_rows),
                   100 * row.infer_s / row.seconds);
     std::printf("\n");
+  }
+  if (profile) {
+    // In each world process; a served world's act is its wait for the inference process
+    // (the transfer, the queue and its share of the batch), whose own time is shown apart.
+    print_phases_header();
+    for (const Row& row : rows) {
+      print_phases(row.name.substr(0, 10), row.loop);
+      if (row.batch_rows > 0)
+        std::printf("  %-10s inference process: %.1f us per observation of the %.1f us act\n",
+                    "", 1e6 * row.infer_s / static_cast<double>(row.batch_rows),
+                    phases(row.loop)["act_us"].get<double>());
+    }
   }
   std::printf("  ratio to the expert      %.3f (median of %d rounds)\n", ratio(0, 1), rounds);
   if (rows.size() > 2)

@@ -26,10 +26,11 @@ void bench_eval(Settings s, const std::string& agent_name, const std::string& ch
 // the expert, then (baseline_workers > 0) the agent with eval.batch = "off" at baseline_workers
 // workers, today's unbatched evaluation; each into a fresh temporary folder. Steps/s and
 // episodes/s (wall time of the whole evaluation, worker start included), the agent's ratio to
-// the expert and to the baseline, and the batched inference's mean batch.
+// the expert and to the baseline, and the batched inference's mean batch. With `profile`, each
+// row's phases as bench_eval's, timed in the world processes.
 void bench_eval_workers(Settings s, const std::string& agent_name, const std::string& checkpoint,
                         const std::string& suite_name, int episodes, int workers, int rounds,
-                        int baseline_workers, bool json);
+                        int baseline_workers, bool json, bool profile = false);
 
 // Inference alone: a learned agent's network on seeded random observations, one row at a time
 // (closed loop today) against batches of each size in `slots` (PolicyRunner's fixed slots),

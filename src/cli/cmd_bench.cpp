@@ -54,7 +54,9 @@ void add_bench(CLI::App& app) {
   auto profile = std::make_shared<bool>(false);
   ev->add_flag("--profile", *profile,
                "also say where a step's time goes: the agent's sensor (BEV and history), its "
-               "act (inference), the world's step, the scorer, the rest");
+               "act (inference; with --workers and batched inference, the wait for the "
+               "inference process, whose own time per observation is shown apart), the "
+               "world's step, the scorer, the rest");
   auto workers = std::make_shared<int>(0);
   auto eval_rounds = std::make_shared<int>(3);
   auto baseline = std::make_shared<int>(2);
@@ -68,9 +70,8 @@ void add_bench(CLI::App& app) {
                  "(today's evaluation) in each round; 0 leaves it out");
   ev->callback([=] {
     if (*workers > 0) {
-      if (*profile) throw ConfigError("bench eval: --profile runs in one process (no --workers)");
       bench_eval_workers(settings_from(*config), *agent, *checkpoint, *suite, *episodes,
-                         *workers, *eval_rounds, *baseline, *json);
+                         *workers, *eval_rounds, *baseline, *json, *profile);
       return;
     }
     bench_eval(settings_from(*config), *agent, *checkpoint, *suite, *episodes, *json, *profile);

@@ -55,7 +55,7 @@ TEST(BatchedEval, SameBytesAtAnyNumberOfWorldsServedOrNot) {
   test::CommandResult b = test::run_cli(
       {"bench", "eval", "--config", on, "--agent", "bc-oh", "--checkpoint", run.run(),
        "--suite", "quickstart", "--episodes", "3", "--workers", "3", "--rounds", "1",
-       "--baseline-workers", "2", "--json"});
+       "--baseline-workers", "2", "--profile", "--json"});
   ASSERT_EQ(b.exit_code, 0) << b.describe();
   const json j = json::parse(b.out);
   EXPECT_GT(j["agent"]["batches"].get<long>(), 0);
@@ -64,6 +64,20 @@ TEST(BatchedEval, SameBytesAtAnyNumberOfWorldsServedOrNot) {
   EXPECT_EQ(j["baseline"]["batch"], "off");
   EXPECT_EQ(j["baseline"]["batches"], 0);
   EXPECT_GT(j["speedup_over_baseline"].get<double>(), 0);
+  // The profile, timed in the world processes: a served world's act is its wait, which holds
+  // the inference process's time for its observation.
+  for (const char* row : {"agent", "expert", "baseline"}) {
+    const json& p = j[row]["profile"];
+    EXPECT_GT(p["world_us"].get<double>(), 0) << row;
+    EXPECT_NEAR(p["step_us"].get<double>(),
+                p["sense_us"].get<double>() + p["act_us"].get<double>() +
+                    p["world_us"].get<double>() + p["score_us"].get<double>() +
+                    p["other_us"].get<double>(),
+                1e-6 * p["step_us"].get<double>() + 1e-9)
+        << row;
+  }
+  EXPECT_GT(j["agent"]["profile"]["act_us"].get<double>(),
+            j["agent"]["infer_us_per_row"].get<double>());
 }
 
 TEST(BatchedEval, AKilledWorldIsRetriedAndAKilledInferenceProcessStopsTheJob) {
