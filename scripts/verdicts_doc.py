@@ -156,7 +156,10 @@ def runs_section():
                                        "checkpoint.json")):
         ck = json.load(open(path))
         seed = int(os.path.basename(os.path.dirname(os.path.dirname(path)))[4:])
+        # A run whose weights are over 5 MB is kept as its record (METHOD.record/).
         method = os.path.basename(os.path.dirname(path))
+        if method.endswith(".record"):
+            method = method[:-len(".record")]
         rt = ck.get("runtime", {})
         runs.append((methods.index(method) if method in methods else 99, seed, method,
                      "D%d" % (seed % 2 + 1), rt.get("device", "?"), rt.get("libtorch", "?"),
