@@ -393,13 +393,8 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
     std::string outcome;
     LoopStats t;
     in >> steps >> outcome >> t.seconds >> t.sense_s >> t.act_s >> t.world_s >> t.score_s;
-    LoopStats& sum = report.loop;
-    sum.steps += steps;
-    sum.seconds += t.seconds;
-    sum.sense_s += t.sense_s;
-    sum.act_s += t.act_s;
-    sum.world_s += t.world_s;
-    sum.score_s += t.score_s;
+    t.steps = steps;
+    report.loop.add(t);
     *line = "episode " + std::to_string(i) + ": " + outcome;
     return steps;
   };
@@ -433,9 +428,7 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
     write_file_atomic(out + "/results.json", report.results.dump(2) + "\n");
   };
   // Batched inference (eval.batch): one inference process for this process's worlds.
-  const bool policy = !req.make && std::find(policy_runner_methods().begin(),
-                                             policy_runner_methods().end(),
-                                             req.agent) != policy_runner_methods().end();
+  const bool policy = !req.make && is_policy_runner_method(req.agent);
   std::optional<InputFormat> input;
   if (policy) input = require_checkpoint(req.checkpoint).input;
   const std::unique_ptr<BatchedInference> inference =

@@ -50,6 +50,15 @@ struct LoopStats {
   // learned agent), the world's step (ego model, SUMO, checks) and the scorer.
   bool profile = false;
   double sense_s = 0, act_s = 0, world_s = 0, score_s = 0;
+  // Adds another loop's steps and seconds (its phases too), for totals over episodes.
+  void add(const LoopStats& o) {
+    steps += o.steps;
+    seconds += o.seconds;
+    sense_s += o.sense_s;
+    act_s += o.act_s;
+    world_s += o.world_s;
+    score_s += o.score_s;
+  }
 };
 
 struct EvalReport {

@@ -171,14 +171,8 @@ void bench_eval(Settings s, const std::string& agent_name, const std::string& ch
     const LoopStats a = episode(agent_name, checkpoint, i);
     const LoopStats x = episode("expert", "", i);
     m.add(x.steps, x.seconds, a.steps, a.seconds);
-    for (auto [total, one] : {std::pair{&agent_total, &a}, std::pair{&expert_total, &x}}) {
-      total->steps += one->steps;
-      total->seconds += one->seconds;
-      total->sense_s += one->sense_s;
-      total->act_s += one->act_s;
-      total->world_s += one->world_s;
-      total->score_s += one->score_s;
-    }
+    agent_total.add(a);
+    expert_total.add(x);
   }
   const double rate = m.steps_b / m.seconds_b, expert_rate = m.steps_a / m.seconds_a;
   if (json) {
@@ -258,13 +252,7 @@ void bench_eval_workers(Settings s, const std::string& agent_name, const std::st
       row.batches += rep.batches;
       row.batch_rows += rep.batch_rows;
       row.infer_s += rep.infer_s;
-      for (auto [sum, one] : {std::pair{&row.loop.seconds, rep.loop.seconds},
-                              std::pair{&row.loop.sense_s, rep.loop.sense_s},
-                              std::pair{&row.loop.act_s, rep.loop.act_s},
-                              std::pair{&row.loop.world_s, rep.loop.world_s},
-                              std::pair{&row.loop.score_s, rep.loop.score_s}})
-        *sum += one;
-      row.loop.steps += rep.loop.steps;
+      row.loop.add(rep.loop);
       row.rates.push_back(static_cast<double>(rep.steps) / sec);
     }
   auto ratio = [&](size_t a, size_t b) {  // median over rounds of row a's steps/s over row b's

@@ -191,8 +191,7 @@ AttentionReport run_attention(const AttentionOptions& o) {
     const std::string other = recorded_method(o.checkpoint);
     if (!other.empty()) refuse_method(o.checkpoint, other);
   } else {
-    const auto& known = policy_runner_methods();
-    if (std::find(known.begin(), known.end(), found->method) == known.end())
+    if (!is_policy_runner_method(found->method))
       refuse_method(o.checkpoint, found->method);
   }
   set_torch_threads(1);

@@ -212,9 +212,9 @@ std::string status_text(int status) {
 
 BatchedInference::BatchedInference(int worlds, size_t frame_bytes, const std::string& marker_dir,
                                    int threads)
-    : worlds_(std::max(1, worlds)) {
+    : frame_bytes_(frame_bytes), worlds_(std::max(1, worlds)) {
   const size_t stride = slot_stride(frame_bytes);
-  bytes_ = round_up(sizeof(Header)) + stride * static_cast<size_t>(worlds_) + sizeof(size_t);
+  bytes_ = round_up(sizeof(Header)) + stride * static_cast<size_t>(worlds_);
   void* p = mmap(nullptr, bytes_, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
   if (p == MAP_FAILED)
     throw IoError("cannot map shared memory for batched inference: " +
@@ -225,8 +225,6 @@ BatchedInference::BatchedInference(int worlds, size_t frame_bytes, const std::st
     Slot* s = slot_at(block_, stride, i);
     new (&s->word) std::atomic<uint64_t>(kIdle);
   }
-  // The frames' capacity, for connect(), after the slots.
-  *reinterpret_cast<size_t*>(static_cast<char*>(p) + bytes_ - sizeof(size_t)) = frame_bytes;
   requests_fd_ = eventfd(0, EFD_CLOEXEC);
   int lifeline[2] = {-1, -1};
   bool ok = requests_fd_ >= 0 && pipe2(lifeline, O_CLOEXEC) == 0;
@@ -287,10 +285,8 @@ void BatchedInference::connect(int slot) {
   if (slot < 0 || slot >= worlds_)
     throw Error("batched inference: no slot " + std::to_string(slot) + " (" +
                 std::to_string(worlds_) + " worlds)");
-  const size_t capacity =
-      *reinterpret_cast<size_t*>(reinterpret_cast<char*>(block_) + bytes_ - sizeof(size_t));
-  Slot* s = slot_at(block_, slot_stride(capacity), slot);
-  client = Client{s, frames_of(s), capacity, requests_fd_,
+  Slot* s = slot_at(block_, slot_stride(frame_bytes_), slot);
+  client = Client{s, frames_of(s), frame_bytes_, requests_fd_,
                   answer_fds_[static_cast<size_t>(slot)], lifeline_fd_};
 }
 

@@ -59,7 +59,8 @@ class BatchedInference {
  private:
   void release();  // stops the inference process, frees the memory and the events
   Block* block_ = nullptr;
-  size_t bytes_ = 0;
+  size_t bytes_ = 0;        // of the mapping
+  size_t frame_bytes_ = 0;  // a slot's room for frames
   int worlds_ = 0;
   pid_t server_ = -1;
   int requests_fd_ = -1, lifeline_fd_ = -1;

@@ -118,6 +118,11 @@ const std::vector<std::string>& policy_runner_methods() {
   return names;
 }
 
+bool is_policy_runner_method(const std::string& method) {
+  const auto& names = policy_runner_methods();
+  return std::find(names.begin(), names.end(), method) != names.end();
+}
+
 void PolicyRunner::Impl::fill(int row, const uint8_t* const* frames, double speed_value,
                               int command_value) {
   float* img = image.data_ptr<float>() + static_cast<size_t>(row) * ck.input.history * frame_values;

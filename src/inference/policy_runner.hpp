@@ -23,6 +23,7 @@ struct PolicyStep {
 
 // The methods whose run folders PolicyRunner loads (their checkpoint.json names one of them).
 const std::vector<std::string>& policy_runner_methods();
+bool is_policy_runner_method(const std::string& method);
 
 // Grad-CAM's inputs for one observation: the last convolutional feature map A of the backbone
 // of the network that acts, and the gradient of the head's output as one number (throttle -

@@ -142,8 +142,7 @@ TrainSummary train_method(const Settings& settings, const TrainRequest& request)
   RunLock lock;
   if (!request.out_dir.empty()) lock = lock_run_folder(request.out_dir, "train");
   if (domain != kMujocoDomain) return m.train(settings, request);
-  const std::vector<std::string>& family = policy_runner_methods();
-  if (std::find(family.begin(), family.end(), request.method) == family.end())
+  if (!is_policy_runner_method(request.method))
     throw ConfigError("method '" + request.method + "' trains on driving data only; " +
                       request.data_dir + " is MuJoCo-Image data (bc-so, bc-oh, residual, fca, "
                       "keyframe, hd, dagger train on it)");

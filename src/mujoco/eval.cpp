@@ -48,11 +48,6 @@ std::optional<json> load_record(const std::string& path) {
   }
 }
 
-bool is_policy(const std::string& agent) {
-  const auto& names = policy_runner_methods();
-  return std::find(names.begin(), names.end(), agent) != names.end();
-}
-
 // The agent's checks, one line each, before any work.
 void validate(const EvalOptions& o, Checkpoint* ck) {
   if (o.out.empty()) throw ConfigError("eval --env needs an output folder (--out DIR)");
@@ -67,7 +62,7 @@ void validate(const EvalOptions& o, Checkpoint* ck) {
       make_expert(o.env, o.planner, o.expert_policies);
     return;
   }
-  if (!is_policy(o.agent))
+  if (!is_policy_runner_method(o.agent))
     throw ConfigError("unknown agent '" + o.agent + "' for eval --env (expert, random, bc-so, "
                       "bc-oh, residual, fca, keyframe, hd, dagger)");
   if (o.checkpoint.empty())
@@ -94,7 +89,7 @@ json run_episode(const EvalOptions& o, int index, MujocoEpisode* rec) {
   const uint64_t seed = episode_seed(derive_seed(o.seed, kEvalStream), index);
   std::unique_ptr<FramePolicy> policy;
   EnvOptions env_options;
-  if (is_policy(o.agent)) {
+  if (is_policy_runner_method(o.agent)) {
     policy = std::make_unique<FramePolicy>(o.checkpoint, o.agent, o.device);
     env_options.width = policy->width();
     env_options.height = policy->height();
@@ -365,7 +360,8 @@ EvalReport evaluate(const EvalOptions& o) {
     write_file_atomic(o.out + "/results.json", report.results.dump(2) + "\n");
   };
   const std::unique_ptr<BatchedInference> inference =
-      start_job_inference(spec, o.batch, device, is_policy(o.agent) ? &ck.input : nullptr);
+      start_job_inference(spec, o.batch, device,
+                          is_policy_runner_method(o.agent) ? &ck.input : nullptr);
   run["inference"] = inference_record(inference.get(), device);
   const JobResult job = run_job(spec, write_results);
   report.steps = job.units;

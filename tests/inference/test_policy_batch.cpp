@@ -49,6 +49,19 @@ bool same_bits(const std::vector<float>& a, const std::vector<float>& b) {
 
 class PolicyBatch : public ::testing::TestWithParam<std::string> {};
 
+// A tiny run of `method` trained on fake data, loaded, with its data.
+struct TinyPolicy {
+  TempDir dir{"cd-policy-batch"};
+  EpisodeSet set;
+  PolicyRunner runner;
+  explicit TinyPolicy(const std::string& method)
+      : set(make_data(dir)), runner(test::train_tiny_run(dir, method, method)) {}
+  static EpisodeSet make_data(const TempDir& dir) {
+    test::write_fake_folder(dir / "data", 3, {.frames = 40});
+    return load_episode_set(dir / "data");
+  }
+};
+
 // Restores the default kernels when a test ends.
 struct KernelsAtDefault {
   ~KernelsAtDefault() { set_batch_invariant_inference(true); }
@@ -62,11 +75,9 @@ TEST_P(PolicyBatch, OnBatchInvariantKernelsARowsActionIsItsObservationsAlone) {
   torch::set_num_threads(1);
   KernelsAtDefault restore;
   ASSERT_TRUE(batch_invariant_inference());
-  TempDir dir("cd-policy-batch");
-  test::write_fake_folder(dir / "data", 3, {.frames = 40});
-  const std::string run = test::train_tiny_run(dir, GetParam(), GetParam());
-  PolicyRunner runner(run);
-  const EpisodeSet set = load_episode_set(dir / "data");
+  TinyPolicy tiny(GetParam());
+  PolicyRunner& runner = tiny.runner;
+  const EpisodeSet& set = tiny.set;
   const int n = 17;
   Observations obs(set, runner, n);
   std::vector<std::vector<float>> alone;
@@ -101,11 +112,9 @@ TEST_P(PolicyBatch, WithFixedSlotsARowsActionDependsOnItsObservationAlone) {
   torch::set_num_threads(1);
   KernelsAtDefault restore;
   set_batch_invariant_inference(false);
-  TempDir dir("cd-policy-batch");
-  test::write_fake_folder(dir / "data", 3, {.frames = 40});
-  const std::string run = test::train_tiny_run(dir, GetParam(), GetParam());
-  PolicyRunner runner(run);
-  const EpisodeSet set = load_episode_set(dir / "data");
+  TinyPolicy tiny(GetParam());
+  PolicyRunner& runner = tiny.runner;
+  const EpisodeSet& set = tiny.set;
   const int n = 11;
   Observations obs(set, runner, n);
 
