@@ -18,10 +18,12 @@ bool batch_invariant_kernels() { return invariant; }
 
 torch::Tensor conv_forward(torch::nn::Conv2dImpl& conv, const torch::Tensor& x) {
   const auto& o = conv.options;
-  const auto* pad = c10::get_if<torch::ExpandingArray<2>>(&o.padding());
+  // Unqualified, so argument-dependent lookup finds the variant's own get_if: c10's in
+  // libtorch 1.x, std's once libtorch's options hold std::variant (2.x).
+  const auto* pad = get_if<torch::ExpandingArray<2>>(&o.padding());
   if (!invariant_on(x) || !pad || o.transposed() || x.dim() != 4 || x.size(0) == 1 ||
       x.scalar_type() != torch::kFloat || o.groups() != 1 ||
-      !c10::holds_alternative<torch::enumtype::kZeros>(o.padding_mode()))
+      !holds_alternative<torch::enumtype::kZeros>(o.padding_mode()))
     return conv.forward(x);
   // The kernel libtorch 1.13 takes for this convolution at batch 1 (ConvParams::use_mkldnn with
   // one row: oneDNN for a kernel larger than 3x3 or a row of more than 20480 values, for a 1x1
