@@ -171,6 +171,18 @@ def runs_section():
         lines.append("| (none yet) | | | | | | |")
     lines += ["", "Runs trained on a lent GPU are noted in protocol section 11 (docs/gpu.md, "
               "\"Training runs on a lent machine\"). No section-7 run is evaluated yet."]
+    devices = {}
+    for _, _, method, _, device, _, _, _ in runs:
+        devices.setdefault(method, set()).add(device)
+    base = devices.get("residual", set())
+    confounded = [m for m in methods if m != "residual" and m in devices and base and
+                  not devices[m] & base]
+    if confounded:
+        lines += ["", "Device and method are confounded in residual - %s: residual's runs "
+                  "trained on %s, theirs on %s (protocol section 11); what the device does to a "
+                  "method's mean is not measured." % (", ".join(confounded), "/".join(sorted(base)),
+                                                      "/".join(sorted(set().union(
+                                                          *(devices[m] for m in confounded)))))]
     return lines
 
 
