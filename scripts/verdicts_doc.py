@@ -85,6 +85,85 @@ def dirs_of(*patterns):
     return [os.path.relpath(d, ROOT) for d in out]
 
 
+# Section 2's six conditions (the folder names of `scripts/verdicts.sh eval`) and section 7's
+# planned training seeds per method.
+CONDITIONS = ["a-regular", "a-dense", "a-regular-shifted", "a-dense-shifted", "b-regular",
+              "b-dense"]
+PLANNED = {"residual": 10, "bc-oh": 10, "keyframe": 10, "dagger": 10, "bc-so": 5, "hd": 5,
+           "fca": 5}
+# Seed 001's tables 7-9 (appendix B.4): collision and timeout %, in the order of CONDITIONS'
+# towns and traffic (training conditions regular, dense; new weather regular, dense; new town
+# regular, dense). Success is what neither took; the paper's primary endpoint is their mean.
+PAPER_FAILURES = {
+    "residual": [(6.8, 15.2), (25.0, 23.3), (5.7, 3.7), (18.0, 6.3), (32.7, 28.0), (50.3, 30.7)],
+    "bc-oh": [(11.1, 21.9), (30.2, 36.1), (7.0, 16.0), (18.3, 16.3), (33.0, 42.0), (43.3, 52.0)],
+    "keyframe": [(13.8, 11.9), (33.9, 24.8), (7.3, 9.3), (22.7, 11.7), (34.3, 31.7), (48.3, 38.0)],
+    "dagger": [(14.8, 15.9), (35.0, 23.0), (12.0, 10.7), (22.7, 13.3), (31.3, 36.0), (52.3, 36.7)],
+    "bc-so": [(53.0, 10.2), (76.4, 11.1), (31.7, 8.7), (42.3, 6.3), (52.0, 30.3), (73.0, 22.3)],
+    "hd": [(18.3, 12.2), (45.3, 20.3), (11.0, 11.3), (21.0, 12.3), (30.7, 37.7), (55.3, 34.0)],
+    "fca": [(14.7, 27.3), (34.4, 35.3), (9.0, 22.3), (18.7, 23.0), (31.3, 48.3), (49.0, 43.3)],
+}
+
+
+def paper_success(method):
+    return sum(100 - c - t for c, t in PAPER_FAILURES[method]) / len(PAPER_FAILURES[method])
+
+
+def evaluated_seeds(method):
+    """The seeds of METHOD with a kept evaluation in every condition of section 2: only whole
+    seeds enter a comparison, since report pairs a label's k-th run across conditions."""
+    root = os.path.join(ROOT, "results", "verdicts", "eval", method)
+    seeds = []
+    for d in sorted(glob.glob(os.path.join(root, "seed*")), key=lambda d: int(d[len(root) + 5:])):
+        if all(os.path.exists(os.path.join(d, c, "results.json")) for c in CONDITIONS):
+            seeds.append(d)
+    return seeds
+
+
+def device_of(method, seed_dir):
+    seed = os.path.basename(seed_dir)
+    base = os.path.join(ROOT, "results", "verdicts", "train", seed, method)
+    for path in (base, base + ".record"):
+        try:
+            return json.load(open(os.path.join(path, "checkpoint.json"))).get(
+                "runtime", {}).get("device")
+        except OSError:
+            continue
+    return None
+
+
+def primary_rows():
+    """Tables 7-9, the primary endpoint (protocol section 2): residual against each method by
+    report --compare over the six conditions, on the seeds evaluated in all six. Until every
+    planned seed of both is evaluated the row is interim and gives no verdict."""
+    out = []
+    cmd = "scripts/verdicts.sh report"
+    res = evaluated_seeds("residual")
+    for m in ["bc-oh", "keyframe", "dagger", "bc-so", "hd", "fca"]:
+        claim = "Seed 001 tables 7-9: residual beats %s (%s)" % (
+            m, "primary endpoint" if m == "bc-oh" else "the primary endpoint's mean")
+        other = evaluated_seeds(m)
+        if not res or not other:
+            out.append([claim, "mean success %.1f against %.1f %%" % (
+                paper_success("residual"), paper_success(m)), "pending: the protocol's runs (docs/protocol.md) are "
+                        "not evaluated yet", "not yet", "`%s`" % cmd])
+            continue
+        dirs = [os.path.relpath(os.path.join(d, c), ROOT) for d in res + other
+                for c in CONDITIONS]
+        paper = "mean success %.1f against %.1f %%" % (paper_success("residual"), paper_success(m))
+        row = compare_row(claim, paper, dirs, "residual", m, "success_rate", True, cmd)
+        row[2] += " (%d x %d seeds)" % (len(res), len(other))
+        devices = ({device_of("residual", d) for d in res}, {device_of(m, d) for d in other})
+        if not devices[0] & devices[1]:
+            row[2] += "; device confounded: residual on %s, %s on %s" % (
+                "/".join(sorted(map(str, devices[0]))), m, "/".join(sorted(map(str, devices[1]))))
+        if len(res) < PLANNED["residual"] or len(other) < PLANNED[m]:
+            row[3] = "not yet (interim: %d of %d and %d of %d planned seeds evaluated)" % (
+                len(res), PLANNED["residual"], len(other), PLANNED[m])
+        out.append(row)
+    return out
+
+
 def rows():
     E = "results/cim_paper/eval"
     cim_cmd = "scripts/cim_paper.sh intervals"
@@ -120,10 +199,9 @@ def rows():
                 "860 / -62 / 372 against 790 / -71 / 294", t13, "residual", "keyframe",
                 "scripts/mujoco_paper.sh table"),
     ]
+    out += primary_rows()
     pending = "pending: the protocol's runs (docs/protocol.md) are not evaluated yet"
-    for claim in ["Seed 001 tables 7-9: residual beats bc-oh (primary endpoint)",
-                  "Seed 001 tables 7-9: residual beats keyframe, dagger, bc-so, hd, fca",
-                  "Seed 001 table 10: green-light rate 31-66 %",
+    for claim in ["Seed 001 table 10: green-light rate 31-66 %",
                   "Seed 001 table 11: two streams help",
                   "Seed 001 B.5: more memory branches help",
                   "Seed 001: residual relies less on the past (probe)"]:
