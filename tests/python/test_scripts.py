@@ -3,7 +3,8 @@ several steps run in order, an unknown step is refused before any step runs; kep
 finished run and copies a kept one back without training; kept_json keeps a report and never
 measures a kept one again; suite_of generates suites of any size; steering_summary.py condenses
 the kept csv files; config_variant.py sets keys of a config; diagnose_table.py sums diagnose
-reports over seeds; turn_failures.py classifies a route's junction passages by their turn."""
+reports over seeds; turn_failures.py classifies a route's junction passages by their turn; gpu_travel.sh counts
+what a call to a lent machine carries and moves results/ out and back."""
 import importlib.util
 import json
 import os
@@ -441,6 +442,94 @@ class VerdictsChooseTest(TempDirCase):
         self.assertIn("| b | hold-balanced | 50.0 / 20.0 | 50.0 / 20.0 | 50.0 | **yes** |", table)
         self.assertIn("| b | signed | 50.0 / 30.0 | 50.0 / 30.0 | 50.0 |  |", table)
         self.assertIn("val/signed/seed0/d/regular/results.json", table)
+
+
+class GpuTravelTest(TempDirCase):
+    """scripts/gpu_travel.sh in a small repository of its own: `size` counts the files a call
+    to a lent machine carries (tracked, untracked but not ignored, and the carried paths; not
+    the ignored ones) against 64 MiB; `aside` and `back` move results/ out and in, refusing
+    while a job runs in the checkout."""
+
+    def setUp(self):
+        super().setUp()
+        self.repo = os.path.join(self.dir, "repo")
+        os.makedirs(os.path.join(self.repo, "scripts"))
+        os.makedirs(os.path.join(self.repo, "results", "a"))
+        os.makedirs(os.path.join(self.repo, "data"))
+        with open(os.path.join(SOURCE, "scripts", "gpu_travel.sh"), "rb") as f:
+            script = f.read()
+        path = os.path.join(self.repo, "scripts", "gpu_travel.sh")
+        with open(path, "wb") as f:
+            f.write(script)
+        os.chmod(path, 0o755)
+        files = {"results/a/r.json": 3_000_000, ".gitignore": 0, "data/big.bin": 5_000_000,
+                 "notes.txt": 700_000}
+        for name, n in files.items():
+            with open(os.path.join(self.repo, name), "wb") as f:
+                f.write(b"x" * n if name != ".gitignore" else b"/data/\n")
+        git = ["git", "-C", self.repo, "-c", "user.name=t", "-c", "user.email=t@t"]
+        subprocess.run(git[:3] + ["init", "-q"], check=True)
+        subprocess.run(git + ["add", "scripts", "results", ".gitignore"], check=True)
+        subprocess.run(git + ["commit", "-q", "-m", "t"], check=True)
+
+    def travel(self, *args):
+        return subprocess.run([os.path.join(self.repo, "scripts", "gpu_travel.sh"), *args],
+                              cwd=self.repo, capture_output=True, text=True, timeout=60)
+
+    def test_size_counts_tracked_untracked_and_carried_not_ignored(self):
+        tree = sum(os.path.getsize(os.path.join(self.repo, f)) for f in
+                   ("scripts/gpu_travel.sh", "results/a/r.json", ".gitignore", "notes.txt"))
+        r = self.travel("size")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("tree %.1f MB + carried 0.0 MB" % (tree / 1e6), r.stdout)
+        r = self.travel("size", "data")
+        self.assertIn("carried 5.0 MB = %.1f MB" % ((tree + 5_000_000) / 1e6), r.stdout)
+        self.assertIn("fits", r.stdout)
+        with open(os.path.join(self.repo, "data", "huge.bin"), "wb") as f:
+            f.truncate(65 * 1024 * 1024)
+        r = self.travel("size", "data")
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("too large", r.stdout)
+        r = self.travel("size", "missing")
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("missing: no such path to carry", r.stderr)
+
+    def test_aside_and_back_and_their_refusals(self):
+        aside = os.path.join(self.dir, ".causaldrive-results-aside")
+        r = self.travel("back")
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("nothing aside", r.stderr)
+        # A job of the checkout (a script running there) holds results/.
+        with open(os.path.join(self.repo, "scripts", "job.sh"), "w") as f:
+            f.write("sleep 30\n")
+        job = subprocess.Popen(["bash", "scripts/job.sh"], cwd=self.repo)
+        try:
+            r = self.travel("aside")
+            self.assertEqual(r.returncode, 1)
+            self.assertIn("runs in this checkout", r.stderr)
+            self.assertTrue(os.path.isdir(os.path.join(self.repo, "results")))
+        finally:
+            job.kill()
+            job.wait()
+        r = self.travel("aside")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertFalse(os.path.exists(os.path.join(self.repo, "results")))
+        self.assertTrue(os.path.isfile(os.path.join(aside, "a", "r.json")))
+        tree = sum(os.path.getsize(os.path.join(self.repo, f)) for f in
+                   ("scripts/gpu_travel.sh", "scripts/job.sh", ".gitignore", "notes.txt"))
+        self.assertIn("tree %.1f MB +" % (tree / 1e6), self.travel("size").stdout)
+        r = self.travel("aside")
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("results/ is not here", r.stderr)
+        os.makedirs(os.path.join(self.repo, "results"))
+        r = self.travel("back")
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("results/ exists again", r.stderr)
+        os.rmdir(os.path.join(self.repo, "results"))
+        r = self.travel("back")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(self.repo, "results", "a", "r.json"), "rb") as f:
+            self.assertEqual(f.read(), b"x" * 3_000_000)
 
 
 if __name__ == "__main__":
