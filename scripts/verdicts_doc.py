@@ -143,14 +143,13 @@ def primary_rows():
         claim = "Seed 001 tables 7-9: residual beats %s (%s)" % (
             m, "primary endpoint" if m == "bc-oh" else "the primary endpoint's mean")
         other = evaluated_seeds(m)
+        paper = "mean success %.1f against %.1f %%" % (paper_success("residual"), paper_success(m))
         if not res or not other:
-            out.append([claim, "mean success %.1f against %.1f %%" % (
-                paper_success("residual"), paper_success(m)), "pending: the protocol's runs (docs/protocol.md) are "
-                        "not evaluated yet", "not yet", "`%s`" % cmd])
+            out.append([claim, paper, "pending: the protocol's runs (docs/protocol.md) are not "
+                        "evaluated yet", "not yet", "`%s`" % cmd])
             continue
         dirs = [os.path.relpath(os.path.join(d, c), ROOT) for d in res + other
                 for c in CONDITIONS]
-        paper = "mean success %.1f against %.1f %%" % (paper_success("residual"), paper_success(m))
         row = compare_row(claim, paper, dirs, "residual", m, "success_rate", True, cmd)
         row[2] += " (%d x %d seeds)" % (len(res), len(other))
         devices = ({device_of("residual", d) for d in res}, {device_of(m, d) for d in other})
@@ -247,8 +246,11 @@ def runs_section():
                                                                 libtorch, best, loss))
     if not runs:
         lines.append("| (none yet) | | | | | | |")
+    evaluated = ["%s %d" % (m, len(evaluated_seeds(m))) for m in methods if evaluated_seeds(m)]
     lines += ["", "Runs trained on a lent GPU are noted in protocol section 11 (docs/gpu.md, "
-              "\"Training runs on a lent machine\"). No section-7 run is evaluated yet."]
+              "\"Training runs on a lent machine\"). " +
+              ("Seeds evaluated in all six conditions of section 2: %s." % ", ".join(evaluated)
+               if evaluated else "No section-7 run is evaluated yet.")]
     devices = {}
     for _, _, method, _, device, _, _, _ in runs:
         devices.setdefault(method, set()).add(device)

@@ -1,6 +1,7 @@
 """The documentation: the README fits in 250 lines; every relative link of the README, the
 docs/ pages and ARCHITECTURE.md resolves (the file, and a #anchor to one of its headings, by
-GitHub's rule); docs/configuration.md is what `causaldrive config --reference` prints now."""
+GitHub's rule); docs/configuration.md is what `causaldrive config --reference` prints now;
+docs/verdicts.md is what the kept results give, its tables 7-9 rows from whole seeds only."""
 import os
 import re
 import subprocess
@@ -51,6 +52,53 @@ class Docs(unittest.TestCase):
             text = f.read()
         self.assertIn("+10.7 [+0.6, +20.8] points", text)  # cim - dim: seed000.md's figure
         self.assertIn("| refuted |", text)
+
+    def test_primary_rows_use_whole_seeds_and_stay_interim_until_every_seed_is_in(self):
+        # A checkout of its own: residual and bc-oh "evaluated" in the six conditions by copies
+        # of the kept 25-task runs (residual_paper), bc-oh's seed 2 missing one condition.
+        import importlib.util
+        import json
+        import shutil
+        import tempfile
+        tmp = tempfile.mkdtemp(prefix="cd_verdicts_")
+        try:
+            conditions = ["a-regular", "a-dense", "a-regular-shifted", "a-dense-shifted",
+                          "b-regular", "b-dense"]
+            success = {}
+            for m, seeds in (("residual", (0, 1, 2)), ("bc-oh", (0, 1, 2))):
+                for s in seeds:
+                    for c in conditions:
+                        if (m, s, c) == ("bc-oh", 2, "b-dense"):
+                            continue
+                        src = os.path.join(ROOT, "results", "residual_paper", "eval", m,
+                                           "seed%d" % s, "town-" + c, "results.json")
+                        dst = os.path.join(tmp, "results", "verdicts", "eval", m, "seed%d" % s, c)
+                        os.makedirs(dst)
+                        shutil.copy(src, dst)
+                        with open(src) as f:
+                            eps = json.load(f)["episodes"]
+                        success[m, s, c] = sum(e["outcome"] == "success" for e in eps) / len(eps)
+            spec = importlib.util.spec_from_file_location(
+                "verdicts_doc", os.path.join(ROOT, "scripts", "verdicts_doc.py"))
+            doc = importlib.util.module_from_spec(spec)
+            os.environ["ROOT"], os.environ["CD"] = tmp, os.path.abspath(BIN)
+            try:
+                spec.loader.exec_module(doc)
+                rows = doc.primary_rows()
+            finally:
+                del os.environ["ROOT"], os.environ["CD"]
+            row = rows[0]
+            self.assertIn("residual beats bc-oh", row[0])
+            self.assertIn("(3 x 2 seeds)", row[2])  # bc-oh's seed 2 lacks a condition
+            self.assertTrue(row[3].startswith("not yet (interim: 3 of 10 and 2 of 10"), row[3])
+            # The difference by hand: each label's mean success over its seeds and the six
+            # conditions (every run holds 25 tasks), residual's minus bc-oh's.
+            a = sum(success["residual", s, c] for s in (0, 1, 2) for c in conditions) / 18
+            b = sum(success["bc-oh", s, c] for s in (0, 1) for c in conditions) / 12
+            self.assertIn("over 6 conditions: %+.1f [" % (100 * (a - b)), row[2])
+            self.assertIn("pending", rows[1][2])  # keyframe: nothing evaluated
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
 
 
     def test_the_readme_fits_in_250_lines(self):
