@@ -12,8 +12,14 @@
 #   scripts/verdicts.sh train    # section 7: seeds 0-9 (residual, bc-oh, keyframe, dagger) and
 #                                # 0-4 (bc-so, hd, fca), seed s on D1 (even) or D2 (odd)
 #   scripts/verdicts.sh eval     # sections 2 and 5: every run on the six conditions
+#   scripts/verdicts.sh ablations  # section 2's ablations, seeds 0-4 (SEEDS_OTHERS): two-stream
+#                                # bc-oh and keyframe (table 11), residual with 2 and 4 memory
+#                                # branches (B.5), each from its base method's chosen config
+#   scripts/verdicts.sh secondary  # the ablations on verdicts-town-a-dense, and every section-7
+#                                # run on the stop-and-go suites (town-a-stopgo, town-b-stopgo)
 #   scripts/verdicts.sh report   # the primary endpoint and residual against each method
-#                                # -> results/verdicts/primary.md
+#                                # -> results/verdicts/primary.md; tables 11 and B.5, the stall
+#                                # rates -> results/verdicts/secondary.md
 #
 # Several steps run in order (`scripts/verdicts.sh tune choose`); an unknown step is refused
 # before any of them runs. Knobs:
@@ -22,6 +28,7 @@
 #   SEEDS_MAIN, SEEDS_OTHERS  section 7's seeds (default: "0 1 ... 9" for residual, bc-oh,
 #            keyframe, dagger; "0 1 2 3 4" for the others)
 #   WORKERS  evaluation workers       (default: 2)
+#   ABLATION_LABELS  the ablations trained and evaluated (default: all four)
 #   VAL, CONFIGS, RESULTS  choose's input and output folders (default: the kept validation
 #            runs, configs/verdicts, results/verdicts)
 set -euo pipefail
@@ -153,6 +160,73 @@ train_step() {
   done
 }
 
+# Section 2's ablations: label|the method whose chosen config (section 6) and data folder they
+# take|the keys set on it. Each trains `--method residual` (the two-stream network) at the seeds
+# of SEEDS_OTHERS and is compared with its base method on verdicts-town-a-dense.
+ABLATIONS="two-stream-bc-oh|bc-oh|residual.policy_input=history residual.memory_target=action
+two-stream-keyframe|keyframe|residual.policy_input=history residual.memory_target=action residual.weights=keyframe
+residual-b2|residual|residual.branches=2
+residual-b4|residual|residual.branches=4"
+ABLATION_LABELS=${ABLATION_LABELS:-"two-stream-bc-oh two-stream-keyframe residual-b2 residual-b4"}
+
+ablation_base() {  # LABEL -> its base method, or a one-line stop
+  local base
+  base=$(awk -F'|' -v l="$1" '$1 == l { print $2 }' <<<"$ABLATIONS")
+  [[ -n $base ]] || { echo "error: unknown ablation '$1' (known: $(cut -d'|' -f1 <<<"$ABLATIONS" | tr '\n' ' '))" >&2; return 1; }
+  echo "$base"
+}
+
+ablation_config() {  # LABEL -> $OUT/configs/LABEL.toml: the base method's config with its keys
+  local base keys file=$OUT/configs/$1.toml
+  base=$(ablation_base "$1") || return
+  keys=$(awk -F'|' -v l="$1" '$1 == l { print $3 }' <<<"$ABLATIONS")
+  mkdir -p "$OUT/configs"
+  # shellcheck disable=SC2086
+  scripts/config_variant.py "$(config_of "$base")" "$file" $keys >&2 || return
+  echo "$file"
+}
+
+ablations_step() {
+  local label base config s
+  for label in $ABLATION_LABELS; do
+    base=$(ablation_base "$label") || return
+    config=$(ablation_config "$label") || return
+    for s in $SEEDS_OTHERS; do
+      kept_train "$OUT/train/seed$s/$label" --config "$config" --method residual \
+        --data "$(data_of "$base" "$s")" --seed "$s" || return
+    done
+  done
+}
+
+secondary_step() {
+  local label config s m suite
+  for label in $ABLATION_LABELS; do
+    config=$(ablation_config "$label") || return
+    for s in $SEEDS_OTHERS; do
+      restore_run "$OUT/train/seed$s/$label" || return
+      kept_eval "$OUT/eval/$label/seed$s/a-dense" --config "$config" --agent residual \
+        --checkpoint "$OUT/train/seed$s/$label" --label "$label" \
+        --suite verdicts-town-a-dense --trials 1 --workers "$WORKERS" --quiet
+    done
+  done
+  for m in $METHODS; do
+    config=$(config_of "$m") || return
+    for s in $(seeds_of "$m"); do
+      for suite in town-a-stopgo town-b-stopgo; do
+        restore_run "$OUT/train/seed$s/$m" || return
+        kept_eval "$OUT/eval/$m/seed$s/${suite#town-}" --config "$config" --agent "$m" \
+          --checkpoint "$OUT/train/seed$s/$m" --label "$m" --suite "$suite" --trials 1 \
+          --workers "$WORKERS" --quiet
+      done
+    done
+  done
+}
+
+condition_names() {  # the six folder names, space-separated
+  local c
+  for c in $CONDITIONS; do printf '%s ' "${c##*|}"; done
+}
+
 # The six conditions of section 2: suite|sensor|folder name.
 CONDITIONS="verdicts-town-a-regular|clean|a-regular verdicts-town-a-dense|clean|a-dense
 verdicts-town-a-regular|shifted|a-regular-shifted verdicts-town-a-dense|shifted|a-dense-shifted
@@ -179,7 +253,11 @@ eval_step() {
 
 report_step() {
   local dirs=() m f=$OUT/primary.md
-  mapfile -t dirs < <(find "$KEEP/eval" -name results.json -printf '%h\n' 2>/dev/null | sort)
+  # The primary endpoint reads the six conditions' folders of section 3's methods alone
+  # (section 2), never the secondary step's stop-and-go or ablation runs.
+  mapfile -t dirs < <(find "$KEEP/eval" -name results.json -printf '%h\n' 2>/dev/null |
+                      grep -E "/($(condition_names | xargs | tr ' ' '|'))\$" |
+                      grep -vE "/eval/($(cut -d'|' -f1 <<<"$ABLATIONS" | xargs | tr ' ' '|'))/" | sort)
   [[ ${#dirs[@]} -gt 0 ]] || { echo "error: nothing evaluated yet in $KEEP/eval" >&2; return 1; }
   mkdir -p "$OUT"
   {
@@ -196,6 +274,30 @@ report_step() {
   } > "$f.tmp"
   mv "$f.tmp" "$f"
   keep_file "$f"
+  secondary_report
+}
+
+secondary_report() {  # tables 11 and B.5 on town-a dense, the stall rates -> secondary.md
+  local f=$OUT/secondary.md dense=() stopgo=() pair
+  mapfile -t dense < <(find "$KEEP/eval" -path '*/a-dense/results.json' -printf '%h\n' 2>/dev/null | sort)
+  mapfile -t stopgo < <(find "$KEEP/eval" -path '*-stopgo/results.json' -printf '%h\n' 2>/dev/null | sort)
+  [[ ${#dense[@]} -gt 0 || ${#stopgo[@]} -gt 0 ]] || return 0
+  {
+    echo "# The verdicts' secondary endpoints (docs/protocol.md section 2), from the kept evaluations"
+    for pair in "two-stream-bc-oh bc-oh" "two-stream-keyframe keyframe" "residual-b2 residual" \
+                "residual-b4 residual"; do
+      echo
+      # shellcheck disable=SC2086
+      "$CD" report "${dense[@]}" --metrics outcomes --compare $pair \
+        | sed -n '/^## .* vs /,$p' || true
+    done
+    if [[ ${#stopgo[@]} -gt 0 ]]; then
+      echo
+      "$CD" report "${stopgo[@]}" --metrics stopgo
+    fi
+  } > "$f.tmp"
+  mv "$f.tmp" "$f"
+  keep_file "$f"
 }
 
 run_step() {
@@ -205,8 +307,10 @@ run_step() {
     data) data_step ;;
     train) train_step ;;
     eval) eval_step ;;
+    ablations) ablations_step ;;
+    secondary) secondary_step ;;
     report) report_step ;;
   esac
 }
 
-run_steps "tune choose data train eval report" "$@"
+run_steps "tune choose data train eval ablations secondary report" "$@"

@@ -444,6 +444,100 @@ class VerdictsChooseTest(TempDirCase):
         self.assertIn("val/signed/seed0/d/regular/results.json", table)
 
 
+class VerdictsAblationsTest(TempDirCase):
+    """scripts/verdicts.sh ablations and report, with a stand-in for causaldrive that records
+    its arguments: each ablation trains the residual network from its base method's chosen
+    config with its keys set, on the base method's data folder of the seed; the primary
+    report reads the six conditions of section 3's methods only, the secondary one the
+    ablations on town-a dense and the stop-and-go runs."""
+
+    def setUp(self):
+        super().setUp()
+        self.log = os.path.join(self.dir, "calls.log")
+        self.cd = os.path.join(self.dir, "cd.sh")
+        with open(self.cd, "w") as f:
+            f.write('#!/bin/bash\necho "$@" >> %s\n' % self.log +
+                    'if [[ $1 == train ]]; then\n'
+                    '  while [[ $# -gt 0 ]]; do [[ $1 == --out ]] && out=$2; shift; done\n'
+                    '  mkdir -p "$out"; echo "{}" > "$out/checkpoint.json"\n'
+                    'fi\n')
+        os.chmod(self.cd, 0o755)
+        self.configs = os.path.join(self.dir, "configs")
+        os.makedirs(self.configs)
+        for m in ("residual", "bc-oh", "keyframe"):
+            with open(os.path.join(self.configs, m + ".toml"), "w") as f:
+                f.write('[collect]\nhold_s = %s\n\n[train]\nepochs = %d\n' % (
+                    "0.0" if m == "keyframe" else "1.0", len(m)))
+
+    def verdicts(self, *steps):
+        env = dict(os.environ, CD=self.cd, OUT=os.path.join(self.dir, "out"),
+                   KEEP=os.path.join(self.dir, "keep"), CONFIGS=self.configs,
+                   SEEDS_OTHERS="0 1")
+        return subprocess.run([os.path.join(SOURCE, "scripts", "verdicts.sh"), *steps],
+                              cwd=SOURCE, env=env, capture_output=True, text=True, timeout=120)
+
+    def calls(self):
+        with open(self.log) as f:
+            return [line.split() for line in f.read().splitlines()]
+
+    def test_each_ablation_trains_residual_from_its_base_config_and_data(self):
+        r = self.verdicts("ablations")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        out = os.path.join(self.dir, "out")
+        trains = {(c[c.index("--out") + 1].split("/")[-2:][1], c[c.index("--seed") + 1]): c
+                  for c in self.calls()}
+        self.assertEqual(len(trains), 8)
+        for (label, seed), c in trains.items():
+            self.assertEqual(c[c.index("--method") + 1], "residual")
+            data = c[c.index("--data") + 1]
+            hold = "0.0" if label == "two-stream-keyframe" else "1.0"
+            self.assertEqual(data, os.path.join(out, "data", "hold" + hold,
+                                                "D1" if seed == "0" else "D2"))
+        import tomllib
+        with open(os.path.join(out, "configs", "two-stream-keyframe.toml"), "rb") as f:
+            got = tomllib.load(f)
+        self.assertEqual(got["train"]["epochs"], len("keyframe"))  # the base config's keys kept
+        self.assertEqual(got["residual"], {"policy_input": "history", "memory_target": "action",
+                                           "weights": "keyframe"})
+        with open(os.path.join(out, "configs", "residual-b4.toml"), "rb") as f:
+            got = tomllib.load(f)
+        self.assertEqual((got["train"]["epochs"], got["residual"]), (8, {"branches": 4}))
+        r = self.verdicts("ablations")  # kept: nothing trained again
+        self.assertEqual(len(self.calls()), 8)
+
+    def test_the_primary_report_reads_only_the_six_conditions_of_the_methods(self):
+        keep = os.path.join(self.dir, "keep", "eval")
+        for d in ("residual/seed0/a-regular", "residual/seed0/a-dense-shifted",
+                  "residual/seed0/a-stopgo", "bc-oh/seed0/b-dense",
+                  "two-stream-bc-oh/seed0/a-dense"):
+            os.makedirs(os.path.join(keep, d))
+            with open(os.path.join(keep, d, "results.json"), "w") as f:
+                f.write("{}")
+        r = self.verdicts("report")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        reports = [c for c in self.calls() if c[0] == "report"]
+        primary = [c for c in reports if "--power" in c][0]
+        runs = sorted(os.path.relpath(x, keep) for x in primary if x.startswith(keep))
+        self.assertEqual(runs, ["bc-oh/seed0/b-dense", "residual/seed0/a-dense-shifted",
+                                "residual/seed0/a-regular"])
+        table11 = [c for c in reports if "two-stream-bc-oh" in c and "--compare" in c][0]
+        self.assertEqual([os.path.relpath(x, keep) for x in table11 if x.startswith(keep)],
+                         ["two-stream-bc-oh/seed0/a-dense"])
+        stopgo = [c for c in reports if "stopgo" in c][0]
+        self.assertEqual([os.path.relpath(x, keep) for x in stopgo if x.startswith(keep)],
+                         ["residual/seed0/a-stopgo"])
+
+    def test_an_unknown_ablation_is_one_line(self):
+        env_label = dict(ABLATION_LABELS="two-stream-bc-oh nonsense")
+        env = dict(os.environ, CD=self.cd, OUT=os.path.join(self.dir, "out"),
+                   KEEP=os.path.join(self.dir, "keep"), CONFIGS=self.configs,
+                   SEEDS_OTHERS="0", **env_label)
+        r = subprocess.run([os.path.join(SOURCE, "scripts", "verdicts.sh"), "ablations"],
+                           cwd=SOURCE, env=env, capture_output=True, text=True, timeout=120)
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("error: unknown ablation 'nonsense'", r.stderr)
+
+
 class GpuTravelTest(TempDirCase):
     """scripts/gpu_travel.sh in a small repository of its own: `size` counts the files a call
     to a lent machine carries (tracked, untracked but not ignored, and the carried paths; not
