@@ -70,6 +70,10 @@ kept_train() {
     restore_run "$dir" || return  # no weights: the step stops (not trained again either)
     return 0
   fi
+  # Finished with weights over the limit, here or elsewhere (scripts/gpu_import.py): its record
+  # kept, its weights in DIR. (A folder imported from a lent machine has no resume state, so
+  # `train` could not even resume it.)
+  [[ -d $kept.record && -f $dir/best.pt ]] && return 0
   "$CD" train "$@" --out "$dir"
   local files=() max_mb=${KEEP_MAX_MB:-5} over=""
   for file in "$dir"/*; do

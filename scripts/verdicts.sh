@@ -17,6 +17,11 @@
 #                                # branches (B.5), each from its base method's chosen config
 #   scripts/verdicts.sh secondary  # the ablations on verdicts-town-a-dense, and every section-7
 #                                # run on the stop-and-go suites (town-a-stopgo, town-b-stopgo)
+#   scripts/verdicts.sh gpu-list # for a lent GPU (docs/gpu.md): GPU_DIR/runs.txt lists every
+#                                # run of train and ablations not trained yet (dagger's rollouts
+#                                # need SUMO: not listed), with its config (cuda_deterministic)
+#                                # and data folder (.tar.xz) beside it, for scripts/gpu_runs.py;
+#                                # scripts/gpu_import.py brings the packs back
 #   scripts/verdicts.sh report   # the primary endpoint and residual against each method
 #                                # -> results/verdicts/primary.md; tables 11 and B.5, the stall
 #                                # rates -> results/verdicts/secondary.md
@@ -29,6 +34,7 @@
 #            keyframe, dagger; "0 1 2 3 4" for the others)
 #   WORKERS  evaluation workers       (default: 2)
 #   ABLATION_LABELS  the ablations trained and evaluated (default: all four)
+#   GPU_DIR  gpu-list's folder (default: .gpu/verdicts, which git ignores)
 #   VAL, CONFIGS, RESULTS  choose's input and output folders (default: the kept validation
 #            runs, configs/verdicts, results/verdicts)
 set -euo pipefail
@@ -222,6 +228,57 @@ secondary_step() {
   done
 }
 
+GPU_DIR=${GPU_DIR:-.gpu/verdicts}
+
+gpu_entry() {  # NAME METHOD CONFIG BASE SEED: one line of GPU_DIR/runs.txt.tmp, unless trained
+  local name=$1 method=$2 config=$3 base=$4 seed=$5 kept data tag cfg
+  kept=$(kept_of "$OUT/$name")
+  [[ -d $kept || -d $kept.record ]] && return 0
+  data=$(data_of "$base" "$seed") || return
+  if [[ ! -f $data/collect.json ]]; then
+    echo "$name: not listed, $data is not collected yet (scripts/verdicts.sh data)" >&2
+    return 0
+  fi
+  tag=$(tr '/' '-' <<<"${data#"$OUT"/data/}")
+  if [[ ! -f $GPU_DIR/$tag.tar.xz ]]; then
+    tar -C "$data" --exclude causaldrive.lock -cJf "$GPU_DIR/$tag.tar.xz.tmp" . || return
+    mv "$GPU_DIR/$tag.tar.xz.tmp" "$GPU_DIR/$tag.tar.xz"
+  fi
+  cfg=$GPU_DIR/$(basename "$config")
+  scripts/config_variant.py "$config" "$cfg" train.cuda_deterministic=true >&2 || return
+  echo "$name $method $cfg $GPU_DIR/$tag.tar.xz $seed" >>"$GPU_DIR/runs.txt.tmp"
+}
+
+gpu_list_step() {
+  local s m label methods=""
+  mkdir -p "$GPU_DIR"
+  for m in $METHODS; do
+    if [[ $m == dagger ]]; then
+      echo "dagger: not listed, its rollouts need SUMO (trained here)" >&2
+    elif [[ ! -f $CONFIGS/$m.toml ]]; then
+      echo "$m: not listed, no chosen config yet (scripts/verdicts.sh tune choose)" >&2
+    else
+      methods+=" $m"
+    fi
+  done
+  echo "# scripts/verdicts.sh gpu-list: the runs not trained yet, seeds outer (NAME METHOD CONFIG DATA SEED)" \
+    >"$GPU_DIR/runs.txt.tmp"
+  # Seeds outer, so a deadline on the lent machine leaves every method short by about as much.
+  for s in $(tr ' ' '\n' <<<"$SEEDS_MAIN $SEEDS_OTHERS" | sort -un); do
+    for m in $methods; do
+      [[ " $(seeds_of "$m") " == *" $s "* ]] || continue
+      gpu_entry "train/seed$s/$m" "$m" "$(config_of "$m")" "$m" "$s" || return
+    done
+    [[ " $SEEDS_OTHERS " == *" $s "* ]] || continue
+    for label in $ABLATION_LABELS; do
+      gpu_entry "train/seed$s/$label" residual "$(ablation_config "$label")" \
+        "$(ablation_base "$label")" "$s" || return
+    done
+  done
+  mv "$GPU_DIR/runs.txt.tmp" "$GPU_DIR/runs.txt"
+  echo "$GPU_DIR/runs.txt: $(grep -vc '^#' "$GPU_DIR/runs.txt") runs"
+}
+
 condition_names() {  # the six folder names, space-separated
   local c
   for c in $CONDITIONS; do printf '%s ' "${c##*|}"; done
@@ -309,8 +366,9 @@ run_step() {
     eval) eval_step ;;
     ablations) ablations_step ;;
     secondary) secondary_step ;;
+    gpu-list) gpu_list_step ;;
     report) report_step ;;
   esac
 }
 
-run_steps "tune choose data train eval ablations secondary report" "$@"
+run_steps "tune choose data train eval ablations secondary gpu-list report" "$@"

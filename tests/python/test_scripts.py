@@ -136,6 +136,20 @@ class KeptTrainTest(TempDirCase):
         with open(os.path.join(out, "member_0.pt")) as f:
             self.assertEqual(f.read(), "weights")
 
+    def test_a_recorded_run_with_its_weights_here_is_not_trained_again(self):
+        # Weights over the limit, trained here or imported from a lent machine: the record is
+        # kept and the weights are in the run folder, which has no resume state.
+        os.makedirs(os.path.join(self.dir, "keep", "train", "seed0", "residual.record"))
+        out = os.path.join(self.dir, "out", "train", "seed0", "residual")
+        os.makedirs(out)
+        with open(os.path.join(out, "best.pt"), "w") as f:
+            f.write("gpu")
+        self.assertEqual(self.kept_train("residual"), [])
+        self.assertEqual(os.listdir(out), ["best.pt"])
+        # Without its weights here (a fresh checkout), it trains again.
+        os.remove(os.path.join(out, "best.pt"))
+        self.assertEqual(len(self.kept_train("residual")), 1)
+
 
 class KeptJsonTest(TempDirCase):
     """paper_lib.sh's kept_json FILE CMD...: CMD's output as FILE, kept; a kept FILE is final."""
@@ -536,6 +550,83 @@ class VerdictsAblationsTest(TempDirCase):
                            cwd=SOURCE, env=env, capture_output=True, text=True, timeout=120)
         self.assertNotEqual(r.returncode, 0)
         self.assertIn("error: unknown ablation 'nonsense'", r.stderr)
+
+
+class GpuImportTest(TempDirCase):
+    """scripts/gpu_import.py: a lent machine's packs land where kept_train would have left the
+    runs (weights up to the limit kept, larger ones as a record with the weights in OUT), an
+    unfinished folder of the same run is replaced, a kept run is left alone, and a bad pack or
+    an incomplete run stops the import in one line before anything is written."""
+
+    def pack(self, runs, name="runs_0.tar"):
+        import tarfile
+        src = os.path.join(self.dir, "src")
+        path = os.path.join(self.dir, name)
+        with tarfile.open(path, "w") as tar:
+            for run, files in runs.items():
+                for f, body in files.items():
+                    p = os.path.join(src, run, f)
+                    os.makedirs(os.path.dirname(p), exist_ok=True)
+                    with open(p, "wb") as out:
+                        out.write(body)
+                    tar.add(p, arcname=os.path.join(run, f))
+        return path
+
+    def run_import(self, *packs):
+        return subprocess.run([os.path.join(SOURCE, "scripts", "gpu_import.py"), "--out",
+                               os.path.join(self.dir, "out"), "--keep",
+                               os.path.join(self.dir, "keep"), "--max-mb", "1", *packs],
+                              capture_output=True, text=True, timeout=60)
+
+    def run_files(self, weights):
+        ck = json.dumps({"runtime": {"device": "cuda"}, "epochs_done": 8}).encode()
+        return {"best.pt": weights, "checkpoint.json": ck, "metrics.jsonl": b"{}\n"}
+
+    def test_runs_land_as_kept_train_would_leave_them(self):
+        out, keep = os.path.join(self.dir, "out"), os.path.join(self.dir, "keep")
+        os.makedirs(os.path.join(out, "train/seed5/bc-oh"))  # unfinished here: replaced
+        with open(os.path.join(out, "train/seed5/bc-oh/model.pt"), "w") as f:
+            f.write("partial")
+        pack = self.pack({"train/seed5/bc-oh": self.run_files(b"s" * 1000),
+                          "train/seed5/residual": self.run_files(b"L" * 1_500_000)})
+        r = self.run_import(pack)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(sorted(os.listdir(os.path.join(out, "train/seed5/bc-oh"))),
+                         ["best.pt", "checkpoint.json", "metrics.jsonl"])
+        self.assertEqual(sorted(os.listdir(os.path.join(keep, "train/seed5/bc-oh"))),
+                         ["best.pt", "checkpoint.json", "metrics.jsonl"])
+        self.assertEqual(sorted(os.listdir(os.path.join(keep, "train/seed5/residual.record"))),
+                         ["checkpoint.json", "metrics.jsonl"])
+        self.assertFalse(os.path.exists(os.path.join(keep, "train/seed5/residual")))
+        with open(os.path.join(out, "train/seed5/residual/best.pt"), "rb") as f:
+            self.assertEqual(f.read(), b"L" * 1_500_000)
+        self.assertIn("trained on cuda", r.stdout)
+        self.assertIn("scripts/keep_weights.sh " + os.path.join(keep, "train/seed5/bc-oh"),
+                      r.stdout)
+        # Kept: left alone on a second import.
+        pack2 = self.pack({"train/seed5/bc-oh": self.run_files(b"t" * 1000)}, "runs_1.tar")
+        r = self.run_import(pack2)
+        self.assertIn("train/seed5/bc-oh: kept already", r.stdout)
+        with open(os.path.join(keep, "train/seed5/bc-oh/best.pt"), "rb") as f:
+            self.assertEqual(f.read(), b"s" * 1000)
+
+    def test_a_bad_pack_or_an_incomplete_run_writes_nothing(self):
+        good = self.pack({"train/seed1/bc-oh": self.run_files(b"s")})
+        files = self.run_files(b"s")
+        del files["metrics.jsonl"]
+        bad_run = self.pack({"train/seed2/bc-oh": files}, "runs_1.tar")
+        not_tar = os.path.join(self.dir, "x.tar")
+        with open(not_tar, "w") as f:
+            f.write("hello")
+        for packs, msg in (([good, bad_run], "train/seed2/bc-oh lacks metrics.jsonl"),
+                           ([good, not_tar], "not a pack of scripts/gpu_runs.py"),
+                           ([os.path.join(self.dir, "missing.tar")], "No such file")):
+            r = self.run_import(*packs)
+            self.assertEqual(r.returncode, 1)
+            self.assertIn(msg, r.stderr)
+            self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+            self.assertFalse(os.path.exists(os.path.join(self.dir, "out")))
+            self.assertFalse(os.path.exists(os.path.join(self.dir, "keep")))
 
 
 class GpuTravelTest(TempDirCase):
