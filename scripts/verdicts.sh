@@ -17,6 +17,8 @@
 #                                # branches (B.5), each from its base method's chosen config
 #   scripts/verdicts.sh secondary  # the ablations on verdicts-town-a-dense, and every section-7
 #                                # run on the stop-and-go suites (town-a-stopgo, town-b-stopgo)
+#   scripts/verdicts.sh probe    # the copycat probe (causaldrive probe) of every trained
+#                                # history run, on the data folder it did not train on
 #   scripts/verdicts.sh gpu-list # for a lent GPU (docs/gpu.md): GPU_DIR/runs.txt lists every
 #                                # run of train and ablations not trained yet (dagger's rollouts
 #                                # need SUMO: not listed), with its config (cuda_deterministic)
@@ -228,6 +230,21 @@ secondary_step() {
   done
 }
 
+probe_step() {  # the probe's row (protocol section 11): each trained run of a history method
+  local m s run kept
+  for m in $METHODS; do
+    [[ $m == bc-so ]] && continue  # no history to probe
+    for s in $(seeds_of "$m"); do
+      run=$OUT/train/seed$s/$m
+      kept=$(kept_of "$run")
+      [[ -d $kept || ( -d $kept.record && -f $run/best.pt ) ]] || continue  # not trained yet
+      restore_run "$run" || return
+      kept_json "$OUT/probe/seed$s/$m.json" "$CD" probe --checkpoint "$run" \
+        --data "$(data_of "$m" $((s + 1)))" --max-frames 2000 --json || return
+    done
+  done
+}
+
 GPU_DIR=${GPU_DIR:-.gpu/verdicts}
 
 gpu_entry() {  # NAME METHOD CONFIG BASE SEED: one line of GPU_DIR/runs.txt.tmp, unless trained
@@ -366,9 +383,10 @@ run_step() {
     eval) eval_step ;;
     ablations) ablations_step ;;
     secondary) secondary_step ;;
+    probe) probe_step ;;
     gpu-list) gpu_list_step ;;
     report) report_step ;;
   esac
 }
 
-run_steps "tune choose data train eval ablations secondary gpu-list report" "$@"
+run_steps "tune choose data train eval ablations secondary probe gpu-list report" "$@"

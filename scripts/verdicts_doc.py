@@ -132,6 +132,57 @@ def device_of(method, seed_dir):
     return None
 
 
+def probe_row():
+    """The probe's claim (protocol section 11): residual's history effect is below bc-oh's, in
+    the path-free and the blocked stopped frames; per group the difference of the means over
+    training seeds with Welch's 95% interval (scipy), the verdict by section 8's rule."""
+    try:
+        from scipy import stats
+    except ImportError:
+        raise SystemExit("verdicts_doc.py: the probe's row needs scipy (Debian: python3-scipy, "
+                         "which /usr/bin/python3 has with the project's setup)")
+    claim = "Seed 001: residual relies less on the past (probe: history effect below bc-oh's)"
+    cmd = "`scripts/verdicts.sh probe`"
+    root = os.path.join(ROOT, "results", "verdicts", "probe")
+    vals, devices = {}, {}
+    for m in ("residual", "bc-oh"):
+        for path in glob.glob(os.path.join(root, "seed*", m + ".json")):
+            with open(path) as f:
+                vals.setdefault(m, []).append(json.load(f))
+            devices.setdefault(m, set()).add(device_of(m, os.path.dirname(path)))
+    if len(vals.get("residual", [])) < 2 or len(vals.get("bc-oh", [])) < 2:
+        return [claim, "", "pending: fewer than 2 probed seeds of each", "not yet", cmd]
+    parts, words = [], {}
+    for group, name in (("path_free", "path free"), ("blocked", "blocked")):
+        a = [r[group]["history_effect"] for r in vals["residual"]
+             if r[group]["history_effect"] is not None]
+        b = [r[group]["history_effect"] for r in vals["bc-oh"]
+             if r[group]["history_effect"] is not None]
+        ma, mb = sum(a) / len(a), sum(b) / len(b)
+        va = sum((x - ma) ** 2 for x in a) / (len(a) - 1) / len(a)
+        vb = sum((x - mb) ** 2 for x in b) / (len(b) - 1) / len(b)
+        se = (va + vb) ** 0.5
+        df = (va + vb) ** 2 / (va ** 2 / (len(a) - 1) + vb ** 2 / (len(b) - 1)) if se > 0 else 1
+        half = stats.t.ppf(0.975, df) * se
+        d = ma - mb
+        parts.append("%s %+.3f [%+.3f, %+.3f] (%.3f against %.3f)" % (
+            name, d, d - half, d + half, ma, mb))
+        word = ("confirmed" if d + half < 0 else "refuted" if d - half > 0 else
+                "not resolved at this power (half-width %.3f)" % half)
+        words.setdefault(word, []).append(name)
+    ours = "residual - bc-oh, history effect, Welch 95%%: %s (%d x %d seeds)" % (
+        "; ".join(parts), len(vals["residual"]), len(vals["bc-oh"]))
+    if not devices["residual"] & devices["bc-oh"]:
+        ours += "; device confounded: residual on %s, bc-oh on %s" % (
+            "/".join(sorted(map(str, devices["residual"]))),
+            "/".join(sorted(map(str, devices["bc-oh"]))))
+    verdict = "; ".join("%s on %s" % (w, ", ".join(g)) for w, g in words.items())
+    if len(vals["residual"]) < PLANNED["residual"] or len(vals["bc-oh"]) < PLANNED["bc-oh"]:
+        verdict = "not yet (interim: %d of %d and %d of %d planned seeds probed)" % (
+            len(vals["residual"]), PLANNED["residual"], len(vals["bc-oh"]), PLANNED["bc-oh"])
+    return [claim, "(the paper's thesis; no figure)", ours, verdict, cmd]
+
+
 def primary_rows():
     """Tables 7-9, the primary endpoint (protocol section 2): residual against each method by
     report --compare over the six conditions, on the seeds evaluated in all six. Until every
@@ -202,9 +253,9 @@ def rows():
     pending = "pending: the protocol's runs (docs/protocol.md) are not evaluated yet"
     for claim in ["Seed 001 table 10: green-light rate 31-66 %",
                   "Seed 001 table 11: two streams help",
-                  "Seed 001 B.5: more memory branches help",
-                  "Seed 001: residual relies less on the past (probe)"]:
+                  "Seed 001 B.5: more memory branches help"]:
         out.append([claim, "", pending, "not yet", "`scripts/verdicts.sh report`"])
+    out.append(probe_row())
     return out
 
 

@@ -5,6 +5,7 @@ docs/verdicts.md is what the kept results give, its tables 7-9 rows from whole s
 import os
 import re
 import subprocess
+import sys
 import unittest
 
 from support import BIN
@@ -45,7 +46,7 @@ class Docs(unittest.TestCase):
         # results; --check fails on any difference, so no number of the page is typed by hand.
         script = os.path.join(ROOT, "scripts", "verdicts_doc.py")
         env = dict(os.environ, CD=os.path.abspath(BIN), ROOT=ROOT)
-        r = subprocess.run([script, "--check"], env=env, capture_output=True, text=True,
+        r = subprocess.run([sys.executable, script, "--check"], env=env, capture_output=True, text=True,
                            timeout=600)
         self.assertEqual(r.returncode, 0, r.stderr)
         with open(os.path.join(ROOT, "docs", "verdicts.md"), encoding="utf-8") as f:
@@ -100,6 +101,53 @@ class Docs(unittest.TestCase):
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
+
+    def test_the_probe_row_is_welchs_interval_of_the_kept_probes(self):
+        # Hand-made probe reports of 3 residual and 4 bc-oh seeds; the oracle is statsmodels'
+        # two-sample t interval with unequal variances.
+        import importlib.util
+        import json
+        import shutil
+        import tempfile
+        from statsmodels.stats.weightstats import CompareMeans, DescrStatsW
+        tmp = tempfile.mkdtemp(prefix="cd_probe_")
+        try:
+            values = {"residual": [(0.1, 0.30), (0.2, 0.35), (0.15, 0.20)],
+                      "bc-oh": [(0.3, 0.5), (0.25, 0.45), (0.4, 0.6), (0.35, 0.52)]}
+            for m, rows in values.items():
+                for s, (free, blocked) in enumerate(rows):
+                    d = os.path.join(tmp, "results", "verdicts", "probe", "seed%d" % s)
+                    os.makedirs(d, exist_ok=True)
+                    with open(os.path.join(d, m + ".json"), "w") as f:
+                        json.dump({"path_free": {"history_effect": free},
+                                   "blocked": {"history_effect": blocked}}, f)
+            spec = importlib.util.spec_from_file_location(
+                "verdicts_doc_probe", os.path.join(ROOT, "scripts", "verdicts_doc.py"))
+            doc = importlib.util.module_from_spec(spec)
+            os.environ["ROOT"] = tmp
+            try:
+                spec.loader.exec_module(doc)
+                row = doc.probe_row()
+            finally:
+                del os.environ["ROOT"]
+            for k, name in ((0, "path free"), (1, "blocked")):
+                a = [v[k] for v in values["residual"]]
+                b = [v[k] for v in values["bc-oh"]]
+                lo, hi = CompareMeans(DescrStatsW(a), DescrStatsW(b)).tconfint_diff(
+                    alpha=0.05, usevar="unequal")
+                d = sum(a) / len(a) - sum(b) / len(b)
+                self.assertIn("%s %+.3f [%+.3f, %+.3f]" % (name, d, lo, hi), row[2])
+            self.assertIn("(3 x 4 seeds)", row[2])
+            self.assertIn("interim: 3 of 10 and 4 of 10", row[3])
+            doc.PLANNED.update({"residual": 3, "bc-oh": 4})  # every planned seed in: a verdict
+            os.environ["ROOT"] = tmp
+            try:
+                doc.ROOT = tmp
+                self.assertEqual(doc.probe_row()[3], "confirmed on path free, blocked")
+            finally:
+                del os.environ["ROOT"]
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
 
     def test_the_readme_fits_in_250_lines(self):
         with open(os.path.join(ROOT, "README.md"), encoding="utf-8") as f:
