@@ -183,6 +183,89 @@ def probe_row():
     return [claim, "(the paper's thesis; no figure)", ours, verdict, cmd]
 
 
+def t_interval(values):
+    """Mean and Student t 95% interval over seeds (scipy) of a rate in %, cut to 0-100."""
+    from scipy import stats
+    n = len(values)
+    mean = sum(values) / n
+    if n < 2:
+        return mean, None, None
+    sd = (sum((x - mean) ** 2 for x in values) / (n - 1)) ** 0.5
+    half = stats.t.ppf(0.975, n - 1) * sd / n ** 0.5
+    return mean, max(0.0, mean - half), min(100.0, mean + half)  # a rate in %: within 0-100
+
+
+def table10_row():
+    """Table 10 (protocol section 2): each of bc-oh, keyframe, residual's green-light rate on
+    verdicts-town-a-dense (clean), per training seed from report --metrics lights, with its t
+    interval over seeds against the paper's figure (section 8: inside reproduces)."""
+    claim = "Seed 001 table 10: green-light rate (BCOH / KeyFrame / residual)"
+    paper = {"bc-oh": 30.6, "keyframe": 42.1, "residual": 66.3}
+    cmd = "`scripts/verdicts.sh report`"
+    parts, words, counts = [], {}, []
+    for m in ("bc-oh", "keyframe", "residual"):
+        dirs = [os.path.relpath(os.path.join(d, "a-dense"), ROOT) for d in evaluated_seeds(m)]
+        if not dirs:
+            continue
+        rates = [c["mean"] for d in dirs
+                 for c in report([d], "--metrics", "lights")["cells"]
+                 if c["metric"] == "green_light_rate" and c["mean"] is not None]
+        mean, lo, hi = t_interval([100 * r for r in rates])
+        counts.append((m, len(rates)))
+        if lo is None:
+            parts.append("%s %.1f (1 seed)" % (m, mean))
+            continue
+        parts.append("%s %.1f [%.1f, %.1f] (%d seeds)" % (m, mean, lo, hi, len(rates)))
+        word = ("reproduces" if lo <= paper[m] <= hi else
+                "does not reproduce (higher)" if lo > paper[m] else
+                "does not reproduce (lower)")
+        words.setdefault(word, []).append(m)
+    paper_text = "30.6 / 42.1 / 66.3 %"
+    if not parts:
+        return [claim, paper_text, "pending: the protocol's runs (docs/protocol.md) are not "
+                "evaluated yet", "not yet", cmd]
+    verdict = "; ".join("%s for %s" % (w, ", ".join(g)) for w, g in words.items())
+    if len(counts) < 3 or any(n < PLANNED[m] for m, n in counts):
+        verdict = "not yet (interim: %s of 10 seeds)" % ", ".join(
+            "%s %d" % (m, n) for m, n in counts)
+    return [claim, paper_text, "green-light rate %, t 95% over seeds: " + "; ".join(parts),
+            verdict or "not yet", cmd]
+
+
+def ablation_rows():
+    """Tables 11 and B.5 (protocol section 11): each ablation against its base method on
+    verdicts-town-a-dense, by report --compare (success rate), interim until the ablation's
+    five seeds and the base method's ten are evaluated."""
+    cmd = "scripts/verdicts.sh secondary"
+    out = []
+    for claim, paper, label, base, ablation_better in (
+            ("Seed 001 table 11: two streams alone do not help bc-oh (two-stream bc-oh below "
+             "bc-oh)", "23.7 against 34.1 % success", "two-stream-bc-oh", "bc-oh", False),
+            ("Seed 001 table 11: two streams alone do not help keyframe (two-stream keyframe "
+             "below keyframe)", "38.7 against 41.9 % success", "two-stream-keyframe", "keyframe",
+             False),
+            ("Seed 001 B.5: residual with 2 memory branches beats 1", "52.6 against 52.0 %",
+             "residual-b2", "residual", True),
+            ("Seed 001 B.5: residual with 4 memory branches falls below 1", "50.7 against 52.0 %",
+             "residual-b4", "residual", False)):
+        root = os.path.join(ROOT, "results", "verdicts", "eval")
+        abl = sorted(glob.glob(os.path.join(root, label, "seed*", "a-dense")))
+        ref = [os.path.join(d, "a-dense") for d in evaluated_seeds(base)]
+        abl = [d for d in abl if os.path.exists(os.path.join(d, "results.json"))]
+        if not abl or not ref:
+            out.append([claim, paper, "pending: the protocol's runs (docs/protocol.md) are not "
+                        "evaluated yet", "not yet", "`%s`" % cmd])
+            continue
+        dirs = [os.path.relpath(d, ROOT) for d in abl + ref]
+        row = compare_row(claim, paper, dirs, label, base, "success_rate", ablation_better, cmd)
+        row[2] += " (%d x %d seeds)" % (len(abl), len(ref))
+        if len(abl) < PLANNED["bc-so"] or len(ref) < PLANNED[base]:
+            row[3] = "not yet (interim: %d of 5 and %d of %d planned seeds evaluated)" % (
+                len(abl), len(ref), PLANNED[base])
+        out.append(row)
+    return out
+
+
 def primary_rows():
     """Tables 7-9, the primary endpoint (protocol section 2): residual against each method by
     report --compare over the six conditions, on the seeds evaluated in all six. Until every
@@ -250,11 +333,8 @@ def rows():
                 "scripts/mujoco_paper.sh table"),
     ]
     out += primary_rows()
-    pending = "pending: the protocol's runs (docs/protocol.md) are not evaluated yet"
-    for claim in ["Seed 001 table 10: green-light rate 31-66 %",
-                  "Seed 001 table 11: two streams help",
-                  "Seed 001 B.5: more memory branches help"]:
-        out.append([claim, "", pending, "not yet", "`scripts/verdicts.sh report`"])
+    out.append(table10_row())
+    out += ablation_rows()
     out.append(probe_row())
     return out
 

@@ -102,6 +102,50 @@ class Docs(unittest.TestCase):
             shutil.rmtree(tmp, ignore_errors=True)
 
 
+    def test_the_table10_row_is_each_seeds_green_light_rate_with_its_t_interval(self):
+        # Three seeds of each method "evaluated" by copies of the kept 25-task runs; the oracle
+        # pools each run's green entries over its passages by hand and takes statsmodels' t
+        # interval over seeds (cut to 0-100 %).
+        import importlib.util
+        import json
+        import shutil
+        import tempfile
+        from statsmodels.stats.weightstats import DescrStatsW
+        tmp = tempfile.mkdtemp(prefix="cd_t10_")
+        try:
+            conditions = ["a-regular", "a-dense", "a-regular-shifted", "a-dense-shifted",
+                          "b-regular", "b-dense"]
+            rates = {}
+            for m in ("bc-oh", "keyframe", "residual"):
+                for s in range(3):
+                    for c in conditions:
+                        src = os.path.join(ROOT, "results", "residual_paper", "eval", m,
+                                           "seed%d" % s, "town-" + c, "results.json")
+                        dst = os.path.join(tmp, "results", "verdicts", "eval", m, "seed%d" % s, c)
+                        os.makedirs(dst)
+                        shutil.copy(src, dst)
+                    with open(os.path.join(dst, "..", "a-dense", "results.json")) as f:
+                        eps = json.load(f)["episodes"]
+                    rates.setdefault(m, []).append(
+                        100 * sum(e["green_light_entries"] for e in eps) /
+                        sum(e["light_passages"] for e in eps))
+            spec = importlib.util.spec_from_file_location(
+                "verdicts_doc_t10", os.path.join(ROOT, "scripts", "verdicts_doc.py"))
+            doc = importlib.util.module_from_spec(spec)
+            os.environ["ROOT"], os.environ["CD"] = tmp, os.path.abspath(BIN)
+            try:
+                spec.loader.exec_module(doc)
+                row = doc.table10_row()
+            finally:
+                del os.environ["ROOT"], os.environ["CD"]
+            for m, r in rates.items():
+                lo, hi = DescrStatsW(r).tconfint_mean(alpha=0.05)
+                self.assertIn("%s %.1f [%.1f, %.1f] (3 seeds)" % (
+                    m, sum(r) / 3, max(0, lo), min(100, hi)), row[2])
+            self.assertEqual(row[3], "not yet (interim: bc-oh 3, keyframe 3, residual 3 of 10 seeds)")
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
     def test_the_probe_row_is_welchs_interval_of_the_kept_probes(self):
         # Hand-made probe reports of 3 residual and 4 bc-oh seeds; the oracle is statsmodels'
         # two-sample t interval with unequal variances.
