@@ -352,19 +352,17 @@ report_step() {
 }
 
 secondary_report() {  # tables 11 and B.5 on town-a dense, the stall rates -> secondary.md
-  local f=$OUT/secondary.md dense=() stopgo=() pair
+  local f=$OUT/secondary.md dense=() stopgo=() label base
   mapfile -t dense < <(find "$KEEP/eval" -path '*/a-dense/results.json' -printf '%h\n' 2>/dev/null | sort)
   mapfile -t stopgo < <(find "$KEEP/eval" -path '*-stopgo/results.json' -printf '%h\n' 2>/dev/null | sort)
   [[ ${#dense[@]} -gt 0 || ${#stopgo[@]} -gt 0 ]] || return 0
   {
     echo "# The verdicts' secondary endpoints (docs/protocol.md section 2), from the kept evaluations"
-    for pair in "two-stream-bc-oh bc-oh" "two-stream-keyframe keyframe" "residual-b2 residual" \
-                "residual-b4 residual"; do
+    while IFS='|' read -r label base _; do
       echo
-      # shellcheck disable=SC2086
-      "$CD" report "${dense[@]}" --metrics outcomes --compare $pair \
+      "$CD" report "${dense[@]}" --metrics outcomes --compare "$label" "$base" </dev/null \
         | sed -n '/^## .* vs /,$p' || true
-    done
+    done <<<"$ABLATIONS"
     if [[ ${#stopgo[@]} -gt 0 ]]; then
       echo
       "$CD" report "${stopgo[@]}" --metrics stopgo
