@@ -3,8 +3,9 @@ several steps run in order, an unknown step is refused before any step runs; kep
 finished run and copies a kept one back without training; kept_json keeps a report and never
 measures a kept one again; suite_of generates suites of any size; steering_summary.py condenses
 the kept csv files; config_variant.py sets keys of a config; diagnose_table.py sums diagnose
-reports over seeds; turn_failures.py classifies a route's junction passages by their turn; gpu_travel.sh counts
-what a call to a lent machine carries and moves results/ out and back."""
+reports over seeds; turn_failures.py classifies a route's junction passages by their turn;
+gpu_travel.sh counts what a call to a lent machine carries and moves results/ out and back;
+gpu_import.py brings its packs back; verdicts.sh's ablations and report steps."""
 import importlib.util
 import json
 import os
