@@ -45,8 +45,15 @@ case ${1:-} in
   aside)
     [[ -d results ]] || fail "results/ is not here (aside already? scripts/gpu_travel.sh back)"
     [[ ! -e $aside ]] || fail "$aside exists: move it back first (scripts/gpu_travel.sh back)"
+    # This script and the shells that called it are not jobs.
+    ancestors=" " p=$$
+    while [[ -n $p && $p != 0 ]]; do
+      ancestors+="$p "
+      p=$(awk '/^PPid:/ { print $2 }' "/proc/$p/status" 2>/dev/null)
+    done
     for pid in $(pgrep -f 'causaldrive|scripts/.*\.(sh|py)' || true); do
-      [[ $pid != "$$" && $(readlink "/proc/$pid/cwd" 2>/dev/null) == "$root"* ]] || continue
+      [[ $ancestors != *" $pid "* && $(readlink "/proc/$pid/cwd" 2>/dev/null) == "$root"* ]] ||
+        continue
       fail "process $pid ($(tr '\0' ' ' <"/proc/$pid/cmdline" | cut -c1-60)) runs in this checkout and may read results/: stop it first"
     done
     mv results "$aside"
