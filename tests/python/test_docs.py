@@ -40,6 +40,25 @@ def anchors(path):
     return {slug(m.group(1)) for m in re.finditer(r"^#+ (.*)$", text, re.M)}
 
 
+def load_verdicts_doc(root):
+    """scripts/verdicts_doc.py as a module reading the checkout ROOT (and this build's binary)."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location(
+        "verdicts_doc_%d" % id(root), os.path.join(ROOT, "scripts", "verdicts_doc.py"))
+    doc = importlib.util.module_from_spec(spec)
+    saved = {k: os.environ.get(k) for k in ("ROOT", "CD")}
+    os.environ["ROOT"], os.environ["CD"] = root, os.path.abspath(BIN)
+    try:
+        spec.loader.exec_module(doc)
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    return doc
+
+
 class Docs(unittest.TestCase):
     def test_the_verdicts_page_is_what_the_kept_results_give(self):
         # scripts/verdicts_doc.py regenerates docs/verdicts.md from `report` over the kept
@@ -79,15 +98,8 @@ class Docs(unittest.TestCase):
                         with open(src) as f:
                             eps = json.load(f)["episodes"]
                         success[m, s, c] = sum(e["outcome"] == "success" for e in eps) / len(eps)
-            spec = importlib.util.spec_from_file_location(
-                "verdicts_doc", os.path.join(ROOT, "scripts", "verdicts_doc.py"))
-            doc = importlib.util.module_from_spec(spec)
-            os.environ["ROOT"], os.environ["CD"] = tmp, os.path.abspath(BIN)
-            try:
-                spec.loader.exec_module(doc)
-                rows = doc.primary_rows()
-            finally:
-                del os.environ["ROOT"], os.environ["CD"]
+            doc = load_verdicts_doc(tmp)
+            rows = doc.primary_rows()
             row = rows[0]
             self.assertIn("residual beats bc-oh", row[0])
             self.assertIn("(3 x 2 seeds)", row[2])  # bc-oh's seed 2 lacks a condition
@@ -129,15 +141,8 @@ class Docs(unittest.TestCase):
                     rates.setdefault(m, []).append(
                         100 * sum(e["green_light_entries"] for e in eps) /
                         sum(e["light_passages"] for e in eps))
-            spec = importlib.util.spec_from_file_location(
-                "verdicts_doc_t10", os.path.join(ROOT, "scripts", "verdicts_doc.py"))
-            doc = importlib.util.module_from_spec(spec)
-            os.environ["ROOT"], os.environ["CD"] = tmp, os.path.abspath(BIN)
-            try:
-                spec.loader.exec_module(doc)
-                row = doc.table10_row()
-            finally:
-                del os.environ["ROOT"], os.environ["CD"]
+            doc = load_verdicts_doc(tmp)
+            row = doc.table10_row()
             for m, r in rates.items():
                 lo, hi = DescrStatsW(r).tconfint_mean(alpha=0.05)
                 self.assertIn("%s %.1f [%.1f, %.1f] (3 seeds)" % (
@@ -165,15 +170,8 @@ class Docs(unittest.TestCase):
                     with open(os.path.join(d, m + ".json"), "w") as f:
                         json.dump({"path_free": {"history_effect": free},
                                    "blocked": {"history_effect": blocked}}, f)
-            spec = importlib.util.spec_from_file_location(
-                "verdicts_doc_probe", os.path.join(ROOT, "scripts", "verdicts_doc.py"))
-            doc = importlib.util.module_from_spec(spec)
-            os.environ["ROOT"] = tmp
-            try:
-                spec.loader.exec_module(doc)
-                row = doc.probe_row()
-            finally:
-                del os.environ["ROOT"]
+            doc = load_verdicts_doc(tmp)
+            row = doc.probe_row()
             for k, name in ((0, "path free"), (1, "blocked")):
                 a = [v[k] for v in values["residual"]]
                 b = [v[k] for v in values["bc-oh"]]
