@@ -7,6 +7,7 @@ reports over seeds; turn_failures.py classifies a route's junction passages by t
 gpu_travel.sh counts what a call to a lent machine carries and moves results/ out and back;
 gpu_import.py brings its packs back; verdicts.sh's ablations and report steps."""
 import importlib.util
+import io
 import json
 import os
 import subprocess
@@ -619,7 +620,20 @@ class GpuImportTest(TempDirCase):
         not_tar = os.path.join(self.dir, "x.tar")
         with open(not_tar, "w") as f:
             f.write("hello")
+        import tarfile
+        linked = os.path.join(self.dir, "runs_2.tar")  # a link out of the pack
+        with tarfile.open(linked, "w") as tar:
+            info = tarfile.TarInfo("train/seed3/bc-oh/best.pt")
+            info.type, info.linkname = tarfile.SYMTYPE, "/etc/passwd"
+            tar.addfile(info)
+        escaping = os.path.join(self.dir, "runs_3.tar")  # a path out of the pack
+        with tarfile.open(escaping, "w") as tar:
+            info = tarfile.TarInfo("../../outside.pt")
+            info.size = 1
+            tar.addfile(info, io.BytesIO(b"x"))
         for packs, msg in (([good, bad_run], "train/seed2/bc-oh lacks metrics.jsonl"),
+                           ([good, linked], "best.pt is not a plain file inside the pack"),
+                           ([good, escaping], "outside.pt is not a plain file inside the pack"),
                            ([good, not_tar], "not a pack of scripts/gpu_runs.py"),
                            ([os.path.join(self.dir, "missing.tar")], "No such file")):
             r = self.run_import(*packs)
