@@ -35,6 +35,8 @@
 #   SEEDS_MAIN, SEEDS_OTHERS  section 7's seeds (default: "0 1 ... 9" for residual, bc-oh,
 #            keyframe, dagger; "0 1 2 3 4" for the others)
 #   WORKERS  evaluation workers       (default: 2)
+#   TRAIN    the runs `eval` evaluates: train (section 7's, default) or cuda (the device
+#            check's runs of protocol section 11, labelled METHOD-cuda; untrained seeds skipped)
 #   ABLATION_LABELS  the ablations trained and evaluated (default: all four)
 #   GPU_DIR  gpu-list's folder (default: .gpu/verdicts, which git ignores)
 #   VAL, CONFIGS, RESULTS  choose's input and output folders (default: the kept validation
@@ -49,6 +51,7 @@ OUT=${OUT:-runs/verdicts}
 SEEDS_MAIN=${SEEDS_MAIN:-"0 1 2 3 4 5 6 7 8 9"}
 SEEDS_OTHERS=${SEEDS_OTHERS:-"0 1 2 3 4"}
 WORKERS=${WORKERS:-2}
+TRAIN=${TRAIN:-train}  # the runs evaluated: section 7's (train) or the device check's (cuda)
 KEEP=${KEEP:-results/verdicts}
 source scripts/paper_lib.sh  # run_steps, kept_train, kept_eval
 VAL=${VAL:-results/residual_paper/recipe/eval}  # recipe_validation.sh's kept evaluations
@@ -308,16 +311,23 @@ verdicts-town-b-regular|clean|b-regular verdicts-town-b-dense|clean|b-dense"
 
 eval_dirs=()
 eval_step() {
-  local m s config c suite sensor name
+  local m s config c suite sensor name run label
   eval_dirs=()
   for m in $METHODS; do
     config=$(config_of "$m") || return
+    # TRAIN=cuda: the device check's runs (section 11), labelled METHOD-cuda.
+    label=$m
+    [[ $TRAIN == train ]] || label=$m-$TRAIN
     for s in $(seeds_of "$m"); do
+      run=$OUT/$TRAIN/seed$s/$m
+      if [[ ! -f $run/best.pt && ! -d $(kept_of "$run") ]]; then
+        [[ $TRAIN == train ]] || { echo "$run: not trained, skipped" >&2; continue; }
+      fi
       for c in $CONDITIONS; do
         IFS='|' read -r suite sensor name <<<"$c"
-        restore_run "$OUT/train/seed$s/$m" || return
-        kept_eval "$OUT/eval/$m/seed$s/$name" --config "$config" --agent "$m" \
-          --checkpoint "$OUT/train/seed$s/$m" --label "$m" --suite "$suite" --trials 1 \
+        restore_run "$run" || return
+        kept_eval "$OUT/eval/$label/seed$s/$name" --config "$config" --agent "$m" \
+          --checkpoint "$run" --label "$label" --suite "$suite" --trials 1 \
           --workers "$WORKERS" --sensor "$sensor" --quiet
         eval_dirs+=("$KEPT")
       done
@@ -343,6 +353,15 @@ report_step() {
       "$CD" report "${dirs[@]}" --metrics outcomes --compare residual "$m" \
         | sed -n '/^## .* vs /,$p' || true
     done
+    # The device check (section 11): residual trained on CUDA against the CUDA-trained
+    # methods, and against residual trained on the CPU.
+    if printf '%s\n' "${dirs[@]}" | grep -q '/eval/residual-cuda/'; then
+      for m in bc-oh keyframe residual; do
+        echo
+        "$CD" report "${dirs[@]}" --metrics outcomes --compare residual-cuda "$m" \
+          | sed -n '/^## .* vs /,$p' || true
+      done
+    fi
     echo
     "$CD" report "${dirs[@]}" --metrics outcomes --power | sed -n '/^## Power/,$p'
   } > "$f.tmp"

@@ -473,9 +473,11 @@ class VerdictsAblationsTest(TempDirCase):
         self.cd = os.path.join(self.dir, "cd.sh")
         with open(self.cd, "w") as f:
             f.write('#!/bin/bash\necho "$@" >> %s\n' % self.log +
-                    'if [[ $1 == train ]]; then\n'
+                    'cmd=$1\n'
+                    'if [[ $cmd == train || $cmd == eval ]]; then\n'
                     '  while [[ $# -gt 0 ]]; do [[ $1 == --out ]] && out=$2; shift; done\n'
                     '  mkdir -p "$out"; echo "{}" > "$out/checkpoint.json"\n'
+                    '  [[ $cmd == eval ]] && echo "{}" > "$out/results.json"\n'
                     'fi\n')
         os.chmod(self.cd, 0o755)
         self.configs = os.path.join(self.dir, "configs")
@@ -542,6 +544,39 @@ class VerdictsAblationsTest(TempDirCase):
         stopgo = [c for c in reports if "stopgo" in c][0]
         self.assertEqual([os.path.relpath(x, keep) for x in stopgo if x.startswith(keep)],
                          ["residual/seed0/a-stopgo"])
+
+    def test_the_device_check_evaluates_the_cuda_runs_under_their_own_label(self):
+        out = os.path.join(self.dir, "out")
+        os.makedirs(os.path.join(out, "cuda", "seed0", "residual"))
+        open(os.path.join(out, "cuda", "seed0", "residual", "best.pt"), "w").close()
+        env = dict(os.environ, CD=self.cd, OUT=out, KEEP=os.path.join(self.dir, "keep"),
+                   CONFIGS=self.configs, TRAIN="cuda", METHODS="residual", SEEDS_MAIN="0 1")
+        r = subprocess.run([os.path.join(SOURCE, "scripts", "verdicts.sh"), "eval"], cwd=SOURCE,
+                           env=env, capture_output=True, text=True, timeout=120)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn(os.path.join(out, "cuda", "seed1", "residual") + ": not trained, skipped",
+                      r.stderr)
+        evals = [c for c in self.calls() if c[0] == "eval"]
+        self.assertEqual(sorted(c[c.index("--out") + 1].split("/")[-1] for c in evals),
+                         sorted(["a-regular", "a-dense", "a-regular-shifted", "a-dense-shifted",
+                                 "b-regular", "b-dense"]))
+        for c in evals:
+            self.assertEqual(c[c.index("--label") + 1], "residual-cuda")
+            self.assertEqual(c[c.index("--checkpoint") + 1],
+                             os.path.join(out, "cuda", "seed0", "residual"))
+            self.assertIn("/eval/residual-cuda/seed0/", c[c.index("--out") + 1])
+        # The report compares residual-cuda with the CUDA-trained methods and residual.
+        keep = os.path.join(self.dir, "keep", "eval")
+        for d in ("residual/seed0/a-regular", "bc-oh/seed0/a-regular"):
+            os.makedirs(os.path.join(keep, d))
+            with open(os.path.join(keep, d, "results.json"), "w") as f:
+                f.write("{}")
+        r = self.verdicts("report")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        compared = sorted(c[c.index("--compare") + 2] for c in self.calls()
+                          if c[0] == "report" and "--compare" in c and
+                          c[c.index("--compare") + 1] == "residual-cuda")
+        self.assertEqual(compared, ["bc-oh", "keyframe", "residual"])
 
     def test_an_unknown_ablation_is_one_line(self):
         env_label = dict(ABLATION_LABELS="two-stream-bc-oh nonsense")
