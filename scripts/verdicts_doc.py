@@ -183,8 +183,8 @@ def probe_row():
     return [claim, "(the paper's thesis; no figure)", ours, verdict, cmd]
 
 
-def t_interval(values):
-    """Mean and Student t 95% interval over seeds (scipy) of a rate in %, cut to 0-100."""
+def t_interval_raw(values):
+    """Mean and Student t 95% interval over seeds (scipy)."""
     from scipy import stats
     n = len(values)
     mean = sum(values) / n
@@ -192,7 +192,15 @@ def t_interval(values):
         return mean, None, None
     sd = (sum((x - mean) ** 2 for x in values) / (n - 1)) ** 0.5
     half = stats.t.ppf(0.975, n - 1) * sd / n ** 0.5
-    return mean, max(0.0, mean - half), min(100.0, mean + half)  # a rate in %: within 0-100
+    return mean, mean - half, mean + half
+
+
+def t_interval(values):
+    """t_interval_raw of a rate in %, cut to 0-100."""
+    mean, lo, hi = t_interval_raw(values)
+    if lo is None:
+        return mean, None, None
+    return mean, max(0.0, lo), min(100.0, hi)  # a rate in %: within 0-100
 
 
 def table10_row():
@@ -297,6 +305,68 @@ def primary_rows():
     return out
 
 
+def primary_endpoint(seed_dir):
+    """One run's primary endpoint (protocol section 2): its mean success rate in % over the six
+    conditions, from report --metrics outcomes of its kept evaluations."""
+    dirs = [os.path.relpath(os.path.join(seed_dir, c), ROOT) for c in CONDITIONS]
+    rates = [c["mean"] for c in report(dirs, "--metrics", "outcomes")["cells"]
+             if c["metric"] == "success_rate"]
+    if len(rates) != len(CONDITIONS):
+        raise SystemExit("verdicts_doc.py: %s: %d of the six conditions reported" % (
+            seed_dir, len(rates)))
+    return 100 * sum(rates) / len(rates)
+
+
+def device_rows():
+    """The device check (protocol section 11, session 30): (a) residual trained on CUDA minus
+    residual trained on the CPU, the primary endpoint paired by seed with a t interval over the
+    seeds evaluated in both; (b) the device-matched comparisons residual (CUDA) - bc-oh and -
+    keyframe by report --compare as the primary rows. Interim until ten seeds of each."""
+    cmd = "`TRAIN=cuda METHODS=residual scripts/verdicts.sh eval report`"
+    claim = "Device check: training on CUDA instead of the CPU moves residual's primary endpoint"
+    paper = ("(no paper figure; protocol section 11. The device and the libtorch build change "
+             "together: the runs table below names both)")
+    cpu = {os.path.basename(d): d for d in evaluated_seeds("residual")}
+    gpu = {os.path.basename(d): d for d in evaluated_seeds("residual-cuda")}
+    both = sorted(set(cpu) & set(gpu), key=lambda s: int(s[4:]))
+    if len(both) < 2:
+        out = [[claim, paper, "pending: %d seed%s evaluated with both devices" % (
+            len(both), "" if len(both) == 1 else "s"), "not yet", cmd]]
+    else:
+        diffs = [primary_endpoint(gpu[s]) - primary_endpoint(cpu[s]) for s in both]
+        mean, lo, hi = t_interval_raw(diffs)
+        ours = ("residual (CUDA) - residual (CPU), mean success over the six conditions, paired "
+                "by seed (%d seeds), t 95%%: %+.1f [%+.1f, %+.1f] points" % (
+                    len(both), mean, lo, hi))
+        if lo > 0 or hi < 0:
+            word = "the device moves it (%s on CUDA)" % ("higher" if lo > 0 else "lower")
+        else:
+            word = "no device effect resolved (half-width %.1f points)" % ((hi - lo) / 2)
+        if len(both) < PLANNED["residual"]:
+            word = "not yet (interim: %d of %d seeds)" % (len(both), PLANNED["residual"])
+        out = [[claim, paper, ours, word, cmd]]
+    res = evaluated_seeds("residual-cuda")
+    for m in ("bc-oh", "keyframe"):
+        claim = ("Seed 001 tables 7-9, device-matched: residual beats %s, all trained on CUDA "
+                 "(%s)" % (m, "primary endpoint" if m == "bc-oh" else "the primary endpoint's mean"))
+        other = evaluated_seeds(m)
+        paper = "mean success %.1f against %.1f %%" % (paper_success("residual"), paper_success(m))
+        if not res or not other:
+            out.append([claim, paper, "pending: residual's CUDA runs are not evaluated yet",
+                        "not yet", cmd])
+            continue
+        dirs = [os.path.relpath(os.path.join(d, c), ROOT) for d in res + other
+                for c in CONDITIONS]
+        row = compare_row(claim, paper, dirs, "residual-cuda", m, "success_rate", True,
+                          "scripts/verdicts.sh report")
+        row[2] += " (%d x %d seeds)" % (len(res), len(other))
+        if len(res) < PLANNED["residual"] or len(other) < PLANNED[m]:
+            row[3] = "not yet (interim: %d of %d and %d of %d planned seeds evaluated)" % (
+                len(res), PLANNED["residual"], len(other), PLANNED[m])
+        out.append(row)
+    return out
+
+
 def rows():
     E = "results/cim_paper/eval"
     cim_cmd = "scripts/cim_paper.sh intervals"
@@ -333,6 +403,7 @@ def rows():
                 "scripts/mujoco_paper.sh table"),
     ]
     out += primary_rows()
+    out += device_rows()
     out.append(table10_row())
     out += ablation_rows()
     out.append(probe_row())
@@ -356,20 +427,26 @@ def runs_section():
              "- **Tuning** (section 6, seed 0, validation suites; variants evaluated of four): " +
              ", ".join(tuned) + ". The choices: `results/verdicts/tuning.md` "
              "(`scripts/verdicts.sh choose`).",
-             "- **Training** (section 7), the kept runs:", "",
+             "- **Training** (section 7; residual-cuda: the device check of section 11), the kept runs:", "",
              "| method | seed | data | device | libtorch | best epoch of | validation loss |",
              "|---|---:|---|---|---|---|---:|"]
     runs = []
-    for path in glob.glob(os.path.join(ROOT, "results", "verdicts", "train", "seed*", "*",
+    for path in glob.glob(os.path.join(ROOT, "results", "verdicts", "*", "seed*", "*",
                                        "checkpoint.json")):
+        kind = path.split(os.sep)[-4]
+        if kind not in ("train", "cuda"):
+            continue
         ck = json.load(open(path))
         seed = int(os.path.basename(os.path.dirname(os.path.dirname(path)))[4:])
         # A run whose weights are over 5 MB is kept as its record (METHOD.record/).
         method = os.path.basename(os.path.dirname(path))
         if method.endswith(".record"):
             method = method[:-len(".record")]
+        if kind == "cuda":  # the device check's runs (protocol section 11)
+            method += "-cuda"
         rt = ck.get("runtime", {})
-        runs.append((methods.index(method) if method in methods else 99, seed, method,
+        order = methods.index(method) if method in methods else 98 if kind == "cuda" else 99
+        runs.append((order, seed, method,
                      "D%d" % (seed % 2 + 1), rt.get("device", "?"), rt.get("libtorch", "?"),
                      "%d of %d" % (ck["best_epoch"], ck["epochs_done"]), ck["best_loss"]))
     for _, seed, method, data, device, libtorch, best, loss in sorted(runs):
@@ -384,7 +461,8 @@ def runs_section():
                if evaluated else "No section-7 run is evaluated yet.")]
     devices = {}
     for _, _, method, _, device, _, _, _ in runs:
-        devices.setdefault(method, set()).add(device)
+        if not method.endswith("-cuda"):
+            devices.setdefault(method, set()).add(device)
     base = devices.get("residual", set())
     confounded = [m for m in methods if m != "residual" and m in devices and base and
                   not devices[m] & base]

@@ -114,6 +114,56 @@ class Docs(unittest.TestCase):
             shutil.rmtree(tmp, ignore_errors=True)
 
 
+    def test_the_device_rows_pair_seeds_and_match_devices(self):
+        # A checkout of its own: residual (CPU) seeds 0-2 and residual-cuda seeds 0-2 and 4
+        # "evaluated" by copies of the kept 25-task runs (residual-cuda's are keyframe's,
+        # relabelled), bc-oh seeds 0-1. Oracle: each seed's mean success over the six
+        # conditions by hand, statsmodels' t interval of the paired differences.
+        import json
+        import shutil
+        import tempfile
+        from statsmodels.stats.weightstats import DescrStatsW
+        tmp = tempfile.mkdtemp(prefix="cd_device_")
+        try:
+            conditions = ["a-regular", "a-dense", "a-regular-shifted", "a-dense-shifted",
+                          "b-regular", "b-dense"]
+            endpoint = {}
+            for label, src_m, seeds in (("residual", "residual", (0, 1, 2)),
+                                        ("residual-cuda", "keyframe", (0, 1, 2, 4)),
+                                        ("bc-oh", "bc-oh", (0, 1))):
+                for s in seeds:
+                    rates = []
+                    for c in conditions:
+                        src = os.path.join(ROOT, "results", "residual_paper", "eval", src_m,
+                                           "seed%d" % (s % 3), "town-" + c, "results.json")
+                        with open(src) as f:
+                            res = json.load(f)
+                        res["label"] = label
+                        dst = os.path.join(tmp, "results", "verdicts", "eval", label,
+                                           "seed%d" % s, c)
+                        os.makedirs(dst)
+                        with open(os.path.join(dst, "results.json"), "w") as f:
+                            json.dump(res, f)
+                        eps = res["episodes"]
+                        rates.append(sum(e["outcome"] == "success" for e in eps) / len(eps))
+                    endpoint[label, s] = 100 * sum(rates) / 6
+            doc = load_verdicts_doc(tmp)
+            rows = doc.device_rows()
+            diffs = [endpoint["residual-cuda", s] - endpoint["residual", s] for s in (0, 1, 2)]
+            lo, hi = DescrStatsW(diffs).tconfint_mean(alpha=0.05)
+            self.assertIn("paired by seed (3 seeds), t 95%%: %+.1f [%+.1f, %+.1f] points" % (
+                sum(diffs) / 3, lo, hi), rows[0][2])
+            self.assertEqual(rows[0][3], "not yet (interim: 3 of 10 seeds)")
+            # Device-matched: residual-cuda's four seeds against bc-oh's two, by report.
+            self.assertIn("residual-cuda - bc-oh, success_rate over 6 conditions", rows[1][2])
+            self.assertIn("(4 x 2 seeds)", rows[1][2])
+            a = sum(endpoint["residual-cuda", s] for s in (0, 1, 2, 4)) / 4
+            b = sum(endpoint["bc-oh", s] for s in (0, 1)) / 2
+            self.assertIn("%+.1f [" % (a - b), rows[1][2])
+            self.assertIn("pending", rows[2][2])  # keyframe: nothing evaluated
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
     def test_the_table10_row_is_each_seeds_green_light_rate_with_its_t_interval(self):
         # Three seeds of each method "evaluated" by copies of the kept 25-task runs; the oracle
         # pools each run's green entries over its passages by hand and takes statsmodels' t
