@@ -17,6 +17,9 @@ Environment: gpu_check's (JOBS, BUILD, CD_DEBS, DEVICE, DEADLINE_S; OUT takes th
             NAME/{best.pt,checkpoint.json,metrics.jsonl} (what an agent loads and the record);
             a run's resume state (model.pt, optimizer.pt) stays behind
   MAX_PACKS how many packs at most (default 7); finished runs that do not fit are named
+  MIN_RUN_S a run starts only while more than this many seconds are left before DEADLINE_S
+            (default 30); set it to a run's measured time so that none starts that cannot end
+            (a residual run took 138-142 s on the H200 at PARALLEL=4)
   CD        a causaldrive binary to use instead of building one (a rehearsal with DEVICE=cpu)
 Each run's record (checkpoint.json) names the device it trained on.
 """
@@ -30,11 +33,13 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import gpu_check as gc  # noqa: E402
+from gpu_import import extract  # noqa: E402
 
 PACK = os.environ.get("PACK")
 PARALLEL = int(os.environ.get("PARALLEL", "4"))
 PACK_MB = float(os.environ.get("PACK_MB", "15"))
 MAX_PACKS = int(os.environ.get("MAX_PACKS", "7"))
+MIN_RUN_S = float(os.environ.get("MIN_RUN_S", "30"))
 KEPT_FILES = ("best.pt", "checkpoint.json", "metrics.jsonl")
 
 
@@ -60,7 +65,7 @@ def unpack_data(path):
     if not os.path.isdir(dest):
         t = time.time()
         with tarfile.open(path) as tar:
-            tar.extractall(dest + ".tmp", filter="data")
+            extract(tar, dest + ".tmp", path)
         os.rename(dest + ".tmp", dest)
         gc.report["steps"]["unpack " + os.path.basename(dest)] = round(time.time() - t, 2)
     return dest
@@ -72,7 +77,7 @@ def train_all(cd, env, runs, work):
     queue, active, status = list(runs), {}, {}
     while queue or active:
         left = gc.left()
-        while queue and len(active) < PARALLEL and (left is None or left > 30):
+        while queue and len(active) < PARALLEL and (left is None or left > MIN_RUN_S):
             r = queue.pop(0)
             out = os.path.join(work, r["name"])
             os.makedirs(os.path.dirname(out), exist_ok=True)

@@ -11,6 +11,7 @@ import io
 import json
 import os
 import subprocess
+import sys
 import unittest
 
 from support import BIN, TempDirCase, needs_sumo
@@ -677,6 +678,31 @@ class GpuImportTest(TempDirCase):
             self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
             self.assertFalse(os.path.exists(os.path.join(self.dir, "out")))
             self.assertFalse(os.path.exists(os.path.join(self.dir, "keep")))
+
+
+class GpuRunsTest(TempDirCase):
+    """scripts/gpu_runs.py rehearsed on this CPU with this build: a run starts only while more
+    than MIN_RUN_S seconds are left before DEADLINE_S, so a lease too short for a run spends
+    nothing on it; the runs are named as not started."""
+
+    def test_no_run_starts_that_cannot_end_by_the_deadline(self):
+        runs = os.path.join(self.dir, "runs.txt")
+        with open(runs, "w") as f:
+            f.write("# two runs\ncuda/seed8/residual residual c.toml D1.tar.xz 8\n"
+                    "cuda/seed9/residual residual c.toml D2.tar.xz 9\n")
+        debs = os.path.join(self.dir, "debs")
+        os.makedirs(debs)
+        pack = os.path.join(self.dir, "pack")
+        env = dict(os.environ, PACK=pack, OUT=os.path.join(self.dir, "logs"), CD=os.path.abspath(BIN),
+                   DEVICE="cpu", CD_DEBS=debs, DEADLINE_S="20", MIN_RUN_S="60")
+        r = subprocess.run([sys.executable, os.path.join(SOURCE, "scripts", "gpu_runs.py"), runs],
+                           env=env, capture_output=True, text=True, timeout=120)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(pack, "gpu_runs.json")) as f:
+            got = json.load(f)
+        self.assertEqual(got["runs"], {"cuda/seed8/residual": {"exit": "not started (deadline)"},
+                                       "cuda/seed9/residual": {"exit": "not started (deadline)"}})
+        self.assertEqual([p for p in os.listdir(pack) if p.endswith(".tar")], [])
 
 
 class GpuTravelTest(TempDirCase):
