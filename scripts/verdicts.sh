@@ -20,7 +20,8 @@
 #   scripts/verdicts.sh probe    # the copycat probe (causaldrive probe) of every trained
 #                                # history run, on the data folder it did not train on
 #   scripts/verdicts.sh gpu-list # for a lent GPU (docs/gpu.md): GPU_DIR/runs.txt lists every
-#                                # run of train and ablations not trained yet (dagger's rollouts
+#                                # run of train, ablations and the device check (cuda/) not
+#                                # trained yet (dagger's rollouts
 #                                # need SUMO: not listed), with its config (cuda_deterministic)
 #                                # and data folder (.tar.xz) beside it, for scripts/gpu_runs.py;
 #                                # scripts/gpu_import.py brings the packs back
@@ -289,6 +290,10 @@ gpu_list_step() {
       [[ " $(seeds_of "$m") " == *" $s "* ]] || continue
       gpu_entry "train/seed$s/$m" "$m" "$(config_of "$m")" "$m" "$s" || return
     done
+    # The device check (protocol section 11): residual on CUDA at section 7's seeds.
+    if [[ " $methods " == *" residual "* && " $SEEDS_MAIN " == *" $s "* ]]; then
+      gpu_entry "cuda/seed$s/residual" residual "$(config_of residual)" residual "$s" || return
+    fi
     [[ " $SEEDS_OTHERS " == *" $s "* ]] || continue
     for label in $ABLATION_LABELS; do
       gpu_entry "train/seed$s/$label" residual "$(ablation_config "$label")" \

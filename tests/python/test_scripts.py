@@ -579,6 +579,35 @@ class VerdictsAblationsTest(TempDirCase):
                           c[c.index("--compare") + 1] == "residual-cuda")
         self.assertEqual(compared, ["bc-oh", "keyframe", "residual"])
 
+    def test_gpu_list_names_every_run_not_kept_with_the_device_checks(self):
+        out, keep = os.path.join(self.dir, "out"), os.path.join(self.dir, "keep")
+        for d in ("D1", "D2"):
+            os.makedirs(os.path.join(out, "data", "hold1.0", d))
+            with open(os.path.join(out, "data", "hold1.0", d, "collect.json"), "w") as f:
+                f.write("{}")
+        os.makedirs(os.path.join(keep, "train", "seed0", "residual"))  # kept: not listed
+        os.makedirs(os.path.join(keep, "cuda", "seed1", "residual.record"))  # kept as a record
+        gpu = os.path.join(self.dir, "gpu")
+        env = dict(os.environ, CD=self.cd, OUT=out, KEEP=keep, CONFIGS=self.configs,
+                   METHODS="residual bc-oh", SEEDS_MAIN="0 1", SEEDS_OTHERS="1",
+                   ABLATION_LABELS="two-stream-bc-oh", GPU_DIR=gpu)
+        r = subprocess.run([os.path.join(SOURCE, "scripts", "verdicts.sh"), "gpu-list"],
+                           cwd=SOURCE, env=env, capture_output=True, text=True, timeout=120)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(gpu, "runs.txt")) as f:
+            lines = [line.split() for line in f if not line.startswith("#")]
+        self.assertEqual([(n, m, seed) for n, m, _, _, seed in lines],
+                         [("train/seed0/bc-oh", "bc-oh", "0"), ("cuda/seed0/residual", "residual", "0"),
+                          ("train/seed1/residual", "residual", "1"),
+                          ("train/seed1/bc-oh", "bc-oh", "1"),
+                          ("train/seed1/two-stream-bc-oh", "residual", "1")])
+        self.assertEqual({d for *_, d, _ in lines}, {os.path.join(gpu, "hold1.0-D1.tar.xz"),
+                                                     os.path.join(gpu, "hold1.0-D2.tar.xz")})
+        import tomllib
+        with open(os.path.join(gpu, "residual.toml"), "rb") as f:
+            got = tomllib.load(f)
+        self.assertEqual((got["train"]["epochs"], got["train"]["cuda_deterministic"]), (8, True))
+
     def test_an_unknown_ablation_is_one_line(self):
         env_label = dict(ABLATION_LABELS="two-stream-bc-oh nonsense")
         env = dict(os.environ, CD=self.cd, OUT=os.path.join(self.dir, "out"),
