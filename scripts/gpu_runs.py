@@ -7,7 +7,8 @@ packed, the rest are named as not finished.
     scripts/gpu_runs.py RUNS
 
 RUNS: a text file, one run per line: NAME METHOD CONFIG DATA SEED (# starts a comment). DATA is
-a `causaldrive collect` folder or a .tar.xz of one (unpacked once, beside it). NAME is the run's
+a `causaldrive collect` folder, a .tar.xz of one (unpacked once, beside it) or a folder of parts
+(scripts/gpu_travel.sh split; joined once, beside it, as PATH.joined). NAME is the run's
 folder relative to the packs (e.g. train/seed2/bc-oh).
 
 Environment: gpu_check's (JOBS, BUILD, CD_DEBS, DEVICE, DEADLINE_S; OUT takes the logs) and
@@ -57,8 +58,31 @@ def read_runs(path):
     return runs
 
 
+def join_parts(path):
+    """A folder of parts (scripts/gpu_travel.sh split: part1, part2, ... carried one a call) ->
+    the collect folder they make, PATH.joined, as hard links (once the parts are all there)."""
+    parts = sorted(d for d in os.listdir(path) if d.startswith("part"))
+    dest = path.rstrip("/") + ".joined"
+    if os.path.isdir(dest):
+        return dest
+    if not os.path.exists(os.path.join(path, "part1", "collect.json")):
+        sys.exit(f"error: {path}: part1/collect.json missing (carry part1 first)")
+    os.makedirs(dest + ".tmp", exist_ok=True)
+    for d in parts:
+        for f in os.listdir(os.path.join(path, d)):
+            target = os.path.join(dest + ".tmp", f)
+            if not os.path.exists(target):
+                os.link(os.path.join(path, d, f), target)
+    os.rename(dest + ".tmp", dest)
+    gc.report["steps"]["join " + os.path.basename(path)] = len(parts)
+    return dest
+
+
 def unpack_data(path):
-    """A .tar.xz of a collect folder -> the folder beside it (once); a folder as it is."""
+    """A .tar.xz of a collect folder -> the folder beside it (once); a folder of parts ->
+    join_parts; a folder as it is."""
+    if os.path.isdir(path) and os.path.isdir(os.path.join(path, "part1")):
+        return join_parts(path)
     if not path.endswith(".tar.xz"):
         return path
     dest = path[: -len(".tar.xz")]

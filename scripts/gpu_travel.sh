@@ -7,6 +7,11 @@
 #   scripts/gpu_travel.sh size [CARRY...]   # the bytes that would travel, against 64 MiB
 #   scripts/gpu_travel.sh aside             # moves results/ to ../.causaldrive-results-aside
 #   scripts/gpu_travel.sh back              # moves it back (refuses if results/ exists again)
+#   scripts/gpu_travel.sh split DIR DEST [MB]
+#       # a data folder too large for one call (the camera's, ~290 MB) as hard links in
+#       # DEST/part1, part2, ... of at most MB each (default 55): carry one part a call on the
+#       # same warm machine (what a call leaves there stays), then name DEST as the run's DATA
+#       # (scripts/gpu_runs.py joins the parts)
 #
 # `aside` refuses while a job of this checkout runs (scripts/verdicts.sh or the like read and
 # write results/); `back` after every call, before anything else runs.
@@ -65,7 +70,30 @@ case ${1:-} in
     mv "$aside" results
     echo "results/ back"
     ;;
+  split)
+    [[ $# -ge 3 && $# -le 4 ]] || fail "usage: scripts/gpu_travel.sh split DIR DEST [MB]"
+    dir=$2 dest=$3 mb=${4:-55}
+    [[ $mb =~ ^[1-9][0-9]*$ ]] || fail "MB: expected a whole number of megabytes, got '$mb'"
+    [[ -f $dir/collect.json ]] || fail "$dir: not a collect folder (no collect.json)"
+    [[ ! -e $dest ]] || fail "$dest exists: remove it first"
+    max=$((mb * 1000000)) part=1 used=0
+    mkdir -p "$dest.tmp/part1"
+    ln "$dir/collect.json" "$dest.tmp/part1/"
+    used=$(stat -c %s "$dir/collect.json")
+    while IFS= read -r f; do
+      n=$(stat -c %s "$f")
+      ((n <= max)) || { rm -rf "$dest.tmp"; fail "$f: $n bytes, over the part's $mb MB"; }
+      if ((used + n > max)); then
+        part=$((part + 1)) used=0
+        mkdir "$dest.tmp/part$part"
+      fi
+      ln "$f" "$dest.tmp/part$part/"
+      used=$((used + n))
+    done < <(find "$dir" -maxdepth 1 -type f ! -name collect.json ! -name causaldrive.lock | sort)
+    mv "$dest.tmp" "$dest"
+    for d in "$dest"/part*; do echo "$d $(du -sb "$d" | cut -f1) bytes"; done
+    ;;
   *)
-    fail "usage: scripts/gpu_travel.sh size [CARRY...] | aside | back"
+    fail "usage: scripts/gpu_travel.sh size [CARRY...] | aside | back | split DIR DEST [MB]"
     ;;
 esac

@@ -766,6 +766,47 @@ class GpuTravelTest(TempDirCase):
         return subprocess.run([os.path.join(self.repo, "scripts", "gpu_travel.sh"), *args],
                               cwd=self.repo, capture_output=True, text=True, timeout=60)
 
+    def test_split_makes_parts_that_gpu_runs_joins(self):
+        data = os.path.join(self.dir, "coll")
+        os.makedirs(data)
+        sizes = {"collect.json": 100, "causaldrive.lock": 10, "episode_000000.h5": 600_000,
+                 "episode_000001.h5": 600_000, "episode_000002.h5": 300_000,
+                 "episode_000003.h5": 600_000}
+        for name, n in sizes.items():
+            with open(os.path.join(data, name), "wb") as f:
+                f.write(name.encode()[:1] * n)
+        dest = os.path.join(self.dir, "parts")
+        r = self.travel("split", data, dest, "1")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        parts = sorted(os.listdir(dest))
+        self.assertEqual(parts, ["part1", "part2", "part3"])  # 0.6 | 0.6 + 0.3 | 0.6 MB
+        seen = []
+        for p in parts:
+            files = os.listdir(os.path.join(dest, p))
+            self.assertLessEqual(sum(os.path.getsize(os.path.join(dest, p, f)) for f in files),
+                                 1_000_000)
+            seen += files
+        self.assertIn("collect.json", os.listdir(os.path.join(dest, "part1")))
+        self.assertEqual(sorted(seen), sorted(k for k in sizes if k != "causaldrive.lock"))
+        # gpu_runs joins the parts into one collect folder beside them.
+        spec = importlib.util.spec_from_file_location(
+            "gpu_runs_t", os.path.join(SOURCE, "scripts", "gpu_runs.py"))
+        gpu_runs = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(gpu_runs)
+        joined = gpu_runs.unpack_data(dest)
+        self.assertEqual(joined, dest + ".joined")
+        for name, n in sizes.items():
+            if name != "causaldrive.lock":
+                self.assertEqual(os.path.getsize(os.path.join(joined, name)), n)
+        # A file larger than a part, or a folder that is not a collect folder: one line, no DEST.
+        r = self.travel("split", data, os.path.join(self.dir, "p2"), "0")
+        self.assertIn("MB: expected a whole number", r.stderr)
+        os.remove(os.path.join(data, "collect.json"))
+        r = self.travel("split", data, os.path.join(self.dir, "p3"))
+        self.assertEqual((r.returncode, r.stderr.count("\n")), (1, 1), r.stderr)
+        self.assertIn("not a collect folder", r.stderr)
+        self.assertFalse(os.path.exists(os.path.join(self.dir, "p3")))
+
     def test_size_counts_tracked_untracked_and_carried_not_ignored(self):
         tree = sum(os.path.getsize(os.path.join(self.repo, f)) for f in
                    ("scripts/gpu_travel.sh", "results/a/r.json", ".gitignore", "notes.txt"))
