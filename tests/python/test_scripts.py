@@ -555,7 +555,7 @@ class VerdictsAblationsTest(TempDirCase):
         r = subprocess.run([os.path.join(SOURCE, "scripts", "verdicts.sh"), "eval"], cwd=SOURCE,
                            env=env, capture_output=True, text=True, timeout=120)
         self.assertEqual(r.returncode, 0, r.stderr)
-        self.assertIn(os.path.join(out, "cuda", "seed1", "residual") + ": not trained, skipped",
+        self.assertIn(os.path.join(out, "cuda", "seed1", "residual") + ": no weights here (not trained on this machine), skipped",
                       r.stderr)
         evals = [c for c in self.calls() if c[0] == "eval"]
         self.assertEqual(sorted(c[c.index("--out") + 1].split("/")[-1] for c in evals),
