@@ -325,9 +325,9 @@ eval_step() {
     [[ $TRAIN == train ]] || label=$m-$TRAIN
     for s in $(seeds_of "$m"); do
       run=$OUT/$TRAIN/seed$s/$m
-      if [[ ! -f $run/best.pt && ! -d $(kept_of "$run") ]]; then
-        [[ $TRAIN == train ]] ||
-          { echo "$run: no weights here (not trained on this machine), skipped" >&2; continue; }
+      if [[ $TRAIN != train && ! -f $run/best.pt && ! -d $(kept_of "$run") ]]; then
+        echo "$run: no weights here (not trained on this machine), skipped" >&2
+        continue
       fi
       for c in $CONDITIONS; do
         IFS='|' read -r suite sensor name <<<"$c"

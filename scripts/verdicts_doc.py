@@ -274,33 +274,42 @@ def ablation_rows():
     return out
 
 
-def primary_rows():
-    """Tables 7-9, the primary endpoint (protocol section 2): residual against each method by
-    report --compare over the six conditions, on the seeds evaluated in all six. Until every
-    planned seed of both is evaluated the row is interim and gives no verdict."""
-    out = []
+def residual_vs_row(claim, label, m, pending, pending_cmd):
+    """Tables 7-9's row of residual's runs LABEL (residual, or the device check's
+    residual-cuda) against method M: report --compare over the six conditions, on the seeds
+    evaluated in all six; interim, with no verdict, until every planned seed of both is in.
+    Returns the row and the two lists of seed folders, or the pending row and None."""
     cmd = "scripts/verdicts.sh report"
-    res = evaluated_seeds("residual")
+    res, other = evaluated_seeds(label), evaluated_seeds(m)
+    paper = "mean success %.1f against %.1f %%" % (paper_success("residual"), paper_success(m))
+    if not res or not other:
+        return [claim, paper, pending, "not yet", pending_cmd], None
+    dirs = [os.path.relpath(os.path.join(d, c), ROOT) for d in res + other for c in CONDITIONS]
+    row = compare_row(claim, paper, dirs, label, m, "success_rate", True, cmd)
+    row[2] += " (%d x %d seeds)" % (len(res), len(other))
+    if len(res) < PLANNED["residual"] or len(other) < PLANNED[m]:
+        row[3] = "not yet (interim: %d of %d and %d of %d planned seeds evaluated)" % (
+            len(res), PLANNED["residual"], len(other), PLANNED[m])
+    return row, (res, other)
+
+
+def primary_rows():
+    """Tables 7-9, the primary endpoint (protocol section 2): residual against each method
+    (residual_vs_row), with the devices named where they differ."""
+    out = []
     for m in ["bc-oh", "keyframe", "dagger", "bc-so", "hd", "fca"]:
         claim = "Seed 001 tables 7-9: residual beats %s (%s)" % (
             m, "primary endpoint" if m == "bc-oh" else "the primary endpoint's mean")
-        other = evaluated_seeds(m)
-        paper = "mean success %.1f against %.1f %%" % (paper_success("residual"), paper_success(m))
-        if not res or not other:
-            out.append([claim, paper, "pending: the protocol's runs (docs/protocol.md) are not "
-                        "evaluated yet", "not yet", "`%s`" % cmd])
-            continue
-        dirs = [os.path.relpath(os.path.join(d, c), ROOT) for d in res + other
-                for c in CONDITIONS]
-        row = compare_row(claim, paper, dirs, "residual", m, "success_rate", True, cmd)
-        row[2] += " (%d x %d seeds)" % (len(res), len(other))
-        devices = ({device_of("residual", d) for d in res}, {device_of(m, d) for d in other})
-        if not devices[0] & devices[1]:
-            row[2] += "; device confounded: residual on %s, %s on %s" % (
-                "/".join(sorted(map(str, devices[0]))), m, "/".join(sorted(map(str, devices[1]))))
-        if len(res) < PLANNED["residual"] or len(other) < PLANNED[m]:
-            row[3] = "not yet (interim: %d of %d and %d of %d planned seeds evaluated)" % (
-                len(res), PLANNED["residual"], len(other), PLANNED[m])
+        row, seeds = residual_vs_row(
+            claim, "residual", m, "pending: the protocol's runs (docs/protocol.md) are not "
+            "evaluated yet", "`scripts/verdicts.sh report`")
+        if seeds:
+            devices = ({device_of("residual", d) for d in seeds[0]},
+                       {device_of(m, d) for d in seeds[1]})
+            if not devices[0] & devices[1]:
+                row[2] += "; device confounded: residual on %s, %s on %s" % (
+                    "/".join(sorted(map(str, devices[0]))), m,
+                    "/".join(sorted(map(str, devices[1]))))
         out.append(row)
     return out
 
@@ -345,25 +354,11 @@ def device_rows():
         if len(both) < PLANNED["residual"]:
             word = "not yet (interim: %d of %d seeds)" % (len(both), PLANNED["residual"])
         out = [[claim, paper, ours, word, cmd]]
-    res = evaluated_seeds("residual-cuda")
     for m in ("bc-oh", "keyframe"):
         claim = ("Seed 001 tables 7-9, device-matched: residual beats %s, all trained on CUDA "
                  "(%s)" % (m, "primary endpoint" if m == "bc-oh" else "the primary endpoint's mean"))
-        other = evaluated_seeds(m)
-        paper = "mean success %.1f against %.1f %%" % (paper_success("residual"), paper_success(m))
-        if not res or not other:
-            out.append([claim, paper, "pending: residual's CUDA runs are not evaluated yet",
-                        "not yet", cmd])
-            continue
-        dirs = [os.path.relpath(os.path.join(d, c), ROOT) for d in res + other
-                for c in CONDITIONS]
-        row = compare_row(claim, paper, dirs, "residual-cuda", m, "success_rate", True,
-                          "scripts/verdicts.sh report")
-        row[2] += " (%d x %d seeds)" % (len(res), len(other))
-        if len(res) < PLANNED["residual"] or len(other) < PLANNED[m]:
-            row[3] = "not yet (interim: %d of %d and %d of %d planned seeds evaluated)" % (
-                len(res), PLANNED["residual"], len(other), PLANNED[m])
-        out.append(row)
+        out.append(residual_vs_row(claim, "residual-cuda", m,
+                                   "pending: residual's CUDA runs are not evaluated yet", cmd)[0])
     return out
 
 

@@ -59,6 +59,32 @@ def load_verdicts_doc(root):
     return doc
 
 
+CONDITIONS = ["a-regular", "a-dense", "a-regular-shifted", "a-dense-shifted", "b-regular",
+              "b-dense"]
+
+
+def copy_kept_run(tmp, label, seed, condition, src_method=None, src_seed=None):
+    """A checkout of its own under tmp: the kept 25-task run of SRC_METHOD (default LABEL) at
+    SRC_SEED (default SEED) in CONDITION (residual_paper's town-CONDITION), written as LABEL's
+    verdicts evaluation of SEED there (relabelled); returns its episodes."""
+    import json
+    src = os.path.join(ROOT, "results", "residual_paper", "eval", src_method or label,
+                       "seed%d" % (seed if src_seed is None else src_seed), "town-" + condition,
+                       "results.json")
+    with open(src) as f:
+        res = json.load(f)
+    res["label"] = label
+    dst = os.path.join(tmp, "results", "verdicts", "eval", label, "seed%d" % seed, condition)
+    os.makedirs(dst)
+    with open(os.path.join(dst, "results.json"), "w") as f:
+        json.dump(res, f)
+    return res["episodes"]
+
+
+def success_share(episodes):
+    return sum(e["outcome"] == "success" for e in episodes) / len(episodes)
+
+
 class Docs(unittest.TestCase):
     def test_the_verdicts_page_is_what_the_kept_results_give(self):
         # scripts/verdicts_doc.py regenerates docs/verdicts.md from `report` over the kept
@@ -76,28 +102,16 @@ class Docs(unittest.TestCase):
     def test_primary_rows_use_whole_seeds_and_stay_interim_until_every_seed_is_in(self):
         # A checkout of its own: residual and bc-oh "evaluated" in the six conditions by copies
         # of the kept 25-task runs (residual_paper), bc-oh's seed 2 missing one condition.
-        import importlib.util
-        import json
         import shutil
         import tempfile
         tmp = tempfile.mkdtemp(prefix="cd_verdicts_")
         try:
-            conditions = ["a-regular", "a-dense", "a-regular-shifted", "a-dense-shifted",
-                          "b-regular", "b-dense"]
             success = {}
-            for m, seeds in (("residual", (0, 1, 2)), ("bc-oh", (0, 1, 2))):
-                for s in seeds:
-                    for c in conditions:
-                        if (m, s, c) == ("bc-oh", 2, "b-dense"):
-                            continue
-                        src = os.path.join(ROOT, "results", "residual_paper", "eval", m,
-                                           "seed%d" % s, "town-" + c, "results.json")
-                        dst = os.path.join(tmp, "results", "verdicts", "eval", m, "seed%d" % s, c)
-                        os.makedirs(dst)
-                        shutil.copy(src, dst)
-                        with open(src) as f:
-                            eps = json.load(f)["episodes"]
-                        success[m, s, c] = sum(e["outcome"] == "success" for e in eps) / len(eps)
+            for m in ("residual", "bc-oh"):
+                for s in (0, 1, 2):
+                    for c in CONDITIONS:
+                        if (m, s, c) != ("bc-oh", 2, "b-dense"):
+                            success[m, s, c] = success_share(copy_kept_run(tmp, m, s, c))
             doc = load_verdicts_doc(tmp)
             rows = doc.primary_rows()
             row = rows[0]
@@ -106,47 +120,31 @@ class Docs(unittest.TestCase):
             self.assertTrue(row[3].startswith("not yet (interim: 3 of 10 and 2 of 10"), row[3])
             # The difference by hand: each label's mean success over its seeds and the six
             # conditions (every run holds 25 tasks), residual's minus bc-oh's.
-            a = sum(success["residual", s, c] for s in (0, 1, 2) for c in conditions) / 18
-            b = sum(success["bc-oh", s, c] for s in (0, 1) for c in conditions) / 12
+            a = sum(success["residual", s, c] for s in (0, 1, 2) for c in CONDITIONS) / 18
+            b = sum(success["bc-oh", s, c] for s in (0, 1) for c in CONDITIONS) / 12
             self.assertIn("over 6 conditions: %+.1f [" % (100 * (a - b)), row[2])
             self.assertIn("pending", rows[1][2])  # keyframe: nothing evaluated
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
-
 
     def test_the_device_rows_pair_seeds_and_match_devices(self):
         # A checkout of its own: residual (CPU) seeds 0-2 and residual-cuda seeds 0-2 and 4
         # "evaluated" by copies of the kept 25-task runs (residual-cuda's are keyframe's,
         # relabelled), bc-oh seeds 0-1. Oracle: each seed's mean success over the six
         # conditions by hand, statsmodels' t interval of the paired differences.
-        import json
         import shutil
         import tempfile
         from statsmodels.stats.weightstats import DescrStatsW
         tmp = tempfile.mkdtemp(prefix="cd_device_")
         try:
-            conditions = ["a-regular", "a-dense", "a-regular-shifted", "a-dense-shifted",
-                          "b-regular", "b-dense"]
             endpoint = {}
             for label, src_m, seeds in (("residual", "residual", (0, 1, 2)),
                                         ("residual-cuda", "keyframe", (0, 1, 2, 4)),
                                         ("bc-oh", "bc-oh", (0, 1))):
                 for s in seeds:
-                    rates = []
-                    for c in conditions:
-                        src = os.path.join(ROOT, "results", "residual_paper", "eval", src_m,
-                                           "seed%d" % (s % 3), "town-" + c, "results.json")
-                        with open(src) as f:
-                            res = json.load(f)
-                        res["label"] = label
-                        dst = os.path.join(tmp, "results", "verdicts", "eval", label,
-                                           "seed%d" % s, c)
-                        os.makedirs(dst)
-                        with open(os.path.join(dst, "results.json"), "w") as f:
-                            json.dump(res, f)
-                        eps = res["episodes"]
-                        rates.append(sum(e["outcome"] == "success" for e in eps) / len(eps))
-                    endpoint[label, s] = 100 * sum(rates) / 6
+                    endpoint[label, s] = 100 * sum(
+                        success_share(copy_kept_run(tmp, label, s, c, src_m, s % 3))
+                        for c in CONDITIONS) / 6
             doc = load_verdicts_doc(tmp)
             rows = doc.device_rows()
             diffs = [endpoint["residual-cuda", s] - endpoint["residual", s] for s in (0, 1, 2)]
@@ -168,29 +166,20 @@ class Docs(unittest.TestCase):
         # Three seeds of each method "evaluated" by copies of the kept 25-task runs; the oracle
         # pools each run's green entries over its passages by hand and takes statsmodels' t
         # interval over seeds (cut to 0-100 %).
-        import importlib.util
-        import json
         import shutil
         import tempfile
         from statsmodels.stats.weightstats import DescrStatsW
         tmp = tempfile.mkdtemp(prefix="cd_t10_")
         try:
-            conditions = ["a-regular", "a-dense", "a-regular-shifted", "a-dense-shifted",
-                          "b-regular", "b-dense"]
             rates = {}
             for m in ("bc-oh", "keyframe", "residual"):
                 for s in range(3):
-                    for c in conditions:
-                        src = os.path.join(ROOT, "results", "residual_paper", "eval", m,
-                                           "seed%d" % s, "town-" + c, "results.json")
-                        dst = os.path.join(tmp, "results", "verdicts", "eval", m, "seed%d" % s, c)
-                        os.makedirs(dst)
-                        shutil.copy(src, dst)
-                    with open(os.path.join(dst, "..", "a-dense", "results.json")) as f:
-                        eps = json.load(f)["episodes"]
-                    rates.setdefault(m, []).append(
-                        100 * sum(e["green_light_entries"] for e in eps) /
-                        sum(e["light_passages"] for e in eps))
+                    for c in CONDITIONS:
+                        eps = copy_kept_run(tmp, m, s, c)
+                        if c == "a-dense":
+                            rates.setdefault(m, []).append(
+                                100 * sum(e["green_light_entries"] for e in eps) /
+                                sum(e["light_passages"] for e in eps))
             doc = load_verdicts_doc(tmp)
             row = doc.table10_row()
             for m, r in rates.items():
@@ -204,7 +193,6 @@ class Docs(unittest.TestCase):
     def test_the_probe_row_is_welchs_interval_of_the_kept_probes(self):
         # Hand-made probe reports of 3 residual and 4 bc-oh seeds; the oracle is statsmodels'
         # two-sample t interval with unequal variances.
-        import importlib.util
         import json
         import shutil
         import tempfile
