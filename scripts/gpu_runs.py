@@ -20,7 +20,7 @@ Environment: gpu_check's (JOBS, BUILD, CD_DEBS, DEVICE, DEADLINE_S; OUT takes th
   MAX_PACKS how many packs at most (default 7); finished runs that do not fit are named
   MIN_RUN_S a run starts only while more than this many seconds are left before DEADLINE_S
             (default 30); set it to a run's measured time so that none starts that cannot end
-            (a residual run took 138-142 s on the H200 at PARALLEL=4)
+            (a residual run took 272-279 s on the H200 at PARALLEL=4)
   CD        a causaldrive binary to use instead of building one (a rehearsal with DEVICE=cpu)
 Each run's record (checkpoint.json) names the device it trained on.
 """
