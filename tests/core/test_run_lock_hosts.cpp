@@ -171,18 +171,24 @@ INSTANTIATE_TEST_SUITE_P(FileSystems, RunLockHosts,
                          });
 
 TEST(RunLockNoFlock, OfTwoClaimsAtOnceTheOverwrittenOneBacksOff) {
-  ::setenv(kLockBeatEnv, "0.2", 1);
+  ::setenv(kLockBeatEnv, "0.4", 1);
   lock_testing::set_flock(&no_flock);
   TempDir dir("cdtest-lock-hosts");
   const std::string run = dir / "run";
   fs::create_directories(run);
   const std::string file = run + "/" + kRunLockName;
-  // node-b writes its claim right after ours, inside our settling quarter period.
+  // node-b writes its claim right after ours, inside our settling quarter period. It polls
+  // from before our claim creates the file, so a missing file reads as empty here.
+  auto read_if_there = [&] {
+    std::error_code ec;
+    return fs::exists(file, ec) ? test::read_text(file) : std::string();
+  };
   std::atomic<bool> stop{false};
   std::thread other([&] {
     while (!stop) {
-      if (test::read_text(file).find("state held") != std::string::npos &&
-          test::read_text(file).find("node-b") == std::string::npos) {
+      const std::string now = read_if_there();
+      if (now.find("state held") != std::string::npos &&
+          now.find("node-b") == std::string::npos) {
         write_lock(file, holder_text("node-b:4242:feed", 0));
         return;
       }
