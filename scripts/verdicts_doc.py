@@ -34,12 +34,18 @@ def pts(x):
     return "%+.1f" % (100 * x)
 
 
+def compare_over(dirs, a, b, metric):
+    """report --compare A B over DIRS: the comparison over the conditions (or the one
+    condition's) and the number of conditions."""
+    c = report(dirs, "--metrics", "outcomes", "--compare", a, b, "--compare-metric", metric)
+    return (c["compare"].get("over_conditions") or c["compare"]["conditions"][0],
+            len(c["compare"]["conditions"]))
+
+
 def compare_row(claim, paper, dirs, a, b, metric, a_better_is_claim, command):
     """A claim "A is better than B" (or, with a_better_is_claim False, "B better than A")
     judged by report --compare over the conditions both have."""
-    c = report(dirs, "--metrics", "outcomes", "--compare", a, b, "--compare-metric", metric)
-    over = c["compare"].get("over_conditions") or c["compare"]["conditions"][0]
-    n = len(c["compare"]["conditions"])
+    over, n = compare_over(dirs, a, b, metric)
     verdict = over["verdict"]
     wanted = "A better" if a_better_is_claim else "B better"
     if verdict == "not resolved":
@@ -284,13 +290,86 @@ def residual_vs_row(claim, label, m, pending, pending_cmd):
     paper = "mean success %.1f against %.1f %%" % (paper_success("residual"), paper_success(m))
     if not res or not other:
         return [claim, paper, pending, "not yet", pending_cmd], None
-    dirs = [os.path.relpath(os.path.join(d, c), ROOT) for d in res + other for c in CONDITIONS]
-    row = compare_row(claim, paper, dirs, label, m, "success_rate", True, cmd)
+    row = compare_row(claim, paper, seed_dirs(res + other), label, m, "success_rate", True, cmd)
     row[2] += " (%d x %d seeds)" % (len(res), len(other))
-    if len(res) < PLANNED["residual"] or len(other) < PLANNED[m]:
+    if len(res) < planned(label) or len(other) < planned(m):
         row[3] = "not yet (interim: %d of %d and %d of %d planned seeds evaluated)" % (
-            len(res), PLANNED["residual"], len(other), PLANNED[m])
+            len(res), planned(label), len(other), planned(m))
     return row, (res, other)
+
+
+def seed_dirs(seeds):
+    """The six condition folders of each seed folder, relative to ROOT."""
+    return [os.path.relpath(os.path.join(d, c), ROOT) for d in seeds for c in CONDITIONS]
+
+
+POWER_TARGET = 6.0  # protocol section 7: the half-width of residual - bc-oh, in points
+ADDED_SEEDS = 5     # seeds 10-14, added when ten do not reach it
+
+
+def primary_comparison():
+    """The primary comparison of the day (protocol section 11, sessions 30-31): residual on
+    CUDA against bc-oh once its CUDA runs have as many whole seeds as bc-oh's, otherwise
+    residual on the CPU against bc-oh. Returns (label, residual's seeds, bc-oh's seeds, the
+    comparison over the six conditions), or None before both have a seed."""
+    cuda, other = evaluated_seeds("residual-cuda"), evaluated_seeds("bc-oh")
+    label = "residual-cuda" if cuda and len(cuda) >= len(other) else "residual"
+    res = evaluated_seeds(label)
+    if not res or not other:
+        return None
+    return label, res, other, compare_over(seed_dirs(res + other), label, "bc-oh",
+                                           "success_rate")[0]
+
+
+_added = []
+
+
+def seeds_added():
+    """Whether section 7's rule has added seeds 10-14 to residual (both devices) and bc-oh:
+    some seed above 9 of theirs is evaluated, or the primary comparison at ten seeds or more
+    of both misses the power target."""
+    if not _added:
+        high = any(int(os.path.basename(d)[4:]) >= PLANNED["residual"]
+                   for m in ("residual", "residual-cuda", "bc-oh") for d in evaluated_seeds(m))
+        p = None if high else primary_comparison()
+        _added.append(high or (p is not None and min(len(p[1]), len(p[2])) >= PLANNED["residual"]
+                               and 50 * (p[3]["hi"] - p[3]["lo"]) > POWER_TARGET))
+    return _added[0]
+
+
+def planned(label):
+    """LABEL's planned seeds: section 7's, plus seeds 10-14 for residual (both devices) and
+    bc-oh once the power rule has added them."""
+    base = PLANNED["residual" if label == "residual-cuda" else label]
+    if label in ("residual", "residual-cuda", "bc-oh") and seeds_added():
+        return base + ADDED_SEEDS
+    return base
+
+
+def power_row():
+    """Section 7's power target on the primary comparison of the day: its half-width against
+    6 points, and what the rule does at ten seeds."""
+    claim = "Power (protocol section 7): the primary comparison's 95% half-width is at most 6 points"
+    cmd = "`scripts/verdicts.sh report`"
+    p = primary_comparison()
+    if p is None:
+        return [claim, "(no paper figure)", "pending: residual and bc-oh are not evaluated yet",
+                "not yet", cmd]
+    label, res, other, over = p
+    half = 50 * (over["hi"] - over["lo"])
+    n = min(len(res), len(other))
+    ours = "%s - bc-oh: half-width %.1f points (%d x %d seeds)" % (label, half, len(res),
+                                                                   len(other))
+    if half <= POWER_TARGET:
+        word = "target met"
+    elif n >= PLANNED["residual"] + ADDED_SEEDS:
+        word = "target not met at %d seeds, the most section 7 allows" % n
+    elif seeds_added():
+        word = ("target not met at %d seeds: seeds 10-14 added to residual (CPU and CUDA) and "
+                "bc-oh (section 7)" % n)
+    else:
+        word = "not yet (interim: %d of %d seeds)" % (n, PLANNED["residual"])
+    return [claim, "(no paper figure)", ours, word, cmd]
 
 
 def primary_rows():
@@ -310,6 +389,13 @@ def primary_rows():
                 row[2] += "; device confounded: residual on %s, %s on %s" % (
                     "/".join(sorted(map(str, devices[0]))), m,
                     "/".join(sorted(map(str, devices[1]))))
+            # Section 11 (session 30): the device-matched comparison becomes the primary one
+            # once residual's CUDA runs have the other's seeds; until then both wait.
+            cuda = len(evaluated_seeds("residual-cuda"))
+            if m in ("bc-oh", "keyframe") and cuda < len(seeds[1]) and \
+                    not row[3].startswith("not yet"):
+                row[3] = ("not yet (interim: residual's CUDA runs have %d of the %d seeds of "
+                          "%s; protocol section 11)" % (cuda, len(seeds[1]), m))
         out.append(row)
     return out
 
@@ -317,8 +403,7 @@ def primary_rows():
 def primary_endpoint(seed_dir):
     """One run's primary endpoint (protocol section 2): its mean success rate in % over the six
     conditions, from report --metrics outcomes of its kept evaluations."""
-    dirs = [os.path.relpath(os.path.join(seed_dir, c), ROOT) for c in CONDITIONS]
-    rates = [c["mean"] for c in report(dirs, "--metrics", "outcomes")["cells"]
+    rates = [c["mean"] for c in report(seed_dirs([seed_dir]), "--metrics", "outcomes")["cells"]
              if c["metric"] == "success_rate"]
     if len(rates) != len(CONDITIONS):
         raise SystemExit("verdicts_doc.py: %s: %d of the six conditions reported" % (
@@ -351,8 +436,8 @@ def device_rows():
             word = "the device moves it (%s on CUDA)" % ("higher" if lo > 0 else "lower")
         else:
             word = "no device effect resolved (half-width %.1f points)" % ((hi - lo) / 2)
-        if len(both) < PLANNED["residual"]:
-            word = "not yet (interim: %d of %d seeds)" % (len(both), PLANNED["residual"])
+        if len(both) < planned("residual"):
+            word = "not yet (interim: %d of %d seeds)" % (len(both), planned("residual"))
         out = [[claim, paper, ours, word, cmd]]
     for m in ("bc-oh", "keyframe"):
         claim = ("Seed 001 tables 7-9, device-matched: residual beats %s, all trained on CUDA "
@@ -399,6 +484,7 @@ def rows():
     ]
     out += primary_rows()
     out += device_rows()
+    out.append(power_row())
     out.append(table10_row())
     out += ablation_rows()
     out.append(probe_row())

@@ -162,6 +162,61 @@ class Docs(unittest.TestCase):
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
+    def test_the_power_rule_judges_the_primary_comparison_of_the_day(self):
+        # A checkout of its own: residual and bc-oh at ten seeds, residual-cuda at eight, by
+        # copies of the kept 25-task runs (seed s copies the kept seed s % 3; residual-cuda's
+        # are keyframe's). Protocol section 7 and section 11's amendments: the primary
+        # comparison is the CPU one while residual-cuda lacks seeds, and both stay interim;
+        # at ten seeds a half-width over 6 adds seeds 10-14 to residual and bc-oh.
+        import re
+        import shutil
+        import tempfile
+        tmp = tempfile.mkdtemp(prefix="cd_power_")
+        try:
+            for label, src_m, seeds in (("residual", "residual", range(10)),
+                                        ("bc-oh", "bc-oh", range(10)),
+                                        ("residual-cuda", "keyframe", range(8))):
+                for s in seeds:
+                    for c in CONDITIONS:
+                        copy_kept_run(tmp, label, s, c, src_m, s % 3)
+            doc = load_verdicts_doc(tmp)
+            cpu = doc.primary_rows()[0]
+            lo, hi = map(float, re.search(r"\[([-+.\d]+), ([-+.\d]+)\] points", cpu[2]).groups())
+            power = doc.power_row()
+            self.assertIn("residual - bc-oh: half-width %.1f points (10 x 10 seeds)" % (
+                (hi - lo) / 2), power[2])
+            half = float(re.search(r"half-width ([\d.]+)", power[2]).group(1))
+            if half > 6:
+                self.assertTrue(power[3].startswith("target not met at 10 seeds: seeds 10-14"),
+                                power[3])
+                self.assertTrue(cpu[3].startswith("not yet (interim: 10 of 15 and 10 of 15"),
+                                cpu[3])
+            else:
+                self.assertEqual(power[3], "target met")
+                self.assertEqual(cpu[3], "not yet (interim: residual's CUDA runs have 8 of the "
+                                 "10 seeds of bc-oh; protocol section 11)")
+            # The other branch, by moving the target: a fresh module for each.
+            doc = load_verdicts_doc(tmp)
+            doc.POWER_TARGET = 0.0 if half <= 6 else 100.0
+            power, cpu = doc.power_row(), doc.primary_rows()[0]
+            if half <= 6:
+                self.assertTrue(power[3].startswith("target not met at 10 seeds"), power[3])
+                self.assertIn("10 of 15 and 10 of 15", cpu[3])
+            else:
+                self.assertEqual(power[3], "target met")
+                self.assertIn("residual's CUDA runs have 8 of the 10 seeds of bc-oh", cpu[3])
+            # Once residual-cuda has bc-oh's seeds, it is the primary comparison.
+            for s in (8, 9):
+                for c in CONDITIONS:
+                    copy_kept_run(tmp, "residual-cuda", s, c, "keyframe", s % 3)
+            doc = load_verdicts_doc(tmp)
+            doc.POWER_TARGET = 100.0
+            self.assertIn("residual-cuda - bc-oh: half-width", doc.power_row()[2])
+            self.assertIn("(10 x 10 seeds)", doc.power_row()[2])
+            self.assertNotIn("CUDA runs have", doc.primary_rows()[0][3])
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
     def test_the_table10_row_is_each_seeds_green_light_rate_with_its_t_interval(self):
         # Three seeds of each method "evaluated" by copies of the kept 25-task runs; the oracle
         # pools each run's green entries over its passages by hand and takes statsmodels' t
