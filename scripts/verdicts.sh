@@ -35,6 +35,9 @@
 #   METHODS  the methods tuned, trained, evaluated (default: the seven of section 3)
 #   SEEDS_MAIN, SEEDS_OTHERS  section 7's seeds (default: "0 1 ... 9" for residual, bc-oh,
 #            keyframe, dagger; "0 1 2 3 4" for the others)
+#   SEEDS_ADDED  the seeds section 7's power rule adds to residual (CPU and the device check's
+#            CUDA) and bc-oh only (default: none; "10 11 12 13 14" once docs/verdicts.md's
+#            power row says they are added)
 #   WORKERS  evaluation workers       (default: 2)
 #   TRAIN    the runs `eval` evaluates: train (section 7's, default) or cuda (the device
 #            check's runs of protocol section 11, labelled METHOD-cuda; untrained seeds skipped)
@@ -51,6 +54,7 @@ VARIANTS="old signed hold-balanced signed-hold-balanced"
 OUT=${OUT:-runs/verdicts}
 SEEDS_MAIN=${SEEDS_MAIN:-"0 1 2 3 4 5 6 7 8 9"}
 SEEDS_OTHERS=${SEEDS_OTHERS:-"0 1 2 3 4"}
+SEEDS_ADDED=${SEEDS_ADDED:-""}
 WORKERS=${WORKERS:-2}
 TRAIN=${TRAIN:-train}  # the runs evaluated: section 7's (train) or the device check's (cuda)
 KEEP=${KEEP:-results/verdicts}
@@ -132,7 +136,11 @@ EOF
 }
 
 seeds_of() {  # METHOD -> its training seeds (section 7)
-  case $1 in residual | bc-oh | keyframe | dagger) echo "$SEEDS_MAIN" ;; *) echo "$SEEDS_OTHERS" ;; esac
+  case $1 in
+    residual | bc-oh) echo "$SEEDS_MAIN $SEEDS_ADDED" ;;
+    keyframe | dagger) echo "$SEEDS_MAIN" ;;
+    *) echo "$SEEDS_OTHERS" ;;
+  esac
 }
 
 config_of() {  # METHOD -> its chosen config (section 6), or a one-line stop
@@ -285,13 +293,13 @@ gpu_list_step() {
   echo "# scripts/verdicts.sh gpu-list: the runs not trained yet, seeds outer (NAME METHOD CONFIG DATA SEED)" \
     >"$GPU_DIR/runs.txt.tmp"
   # Seeds outer, so a deadline on the lent machine leaves every method short by about as much.
-  for s in $(tr ' ' '\n' <<<"$SEEDS_MAIN $SEEDS_OTHERS" | sort -un); do
+  for s in $(tr ' ' '\n' <<<"$SEEDS_MAIN $SEEDS_ADDED $SEEDS_OTHERS" | grep . | sort -un); do
     for m in $methods; do
       [[ " $(seeds_of "$m") " == *" $s "* ]] || continue
       gpu_entry "train/seed$s/$m" "$m" "$(config_of "$m")" "$m" "$s" || return
     done
     # The device check (protocol section 11): residual on CUDA at section 7's seeds.
-    if [[ " $methods " == *" residual "* && " $SEEDS_MAIN " == *" $s "* ]]; then
+    if [[ " $methods " == *" residual "* && " $(seeds_of residual) " == *" $s "* ]]; then
       gpu_entry "cuda/seed$s/residual" residual "$(config_of residual)" residual "$s" || return
     fi
     [[ " $SEEDS_OTHERS " == *" $s "* ]] || continue

@@ -608,6 +608,38 @@ class VerdictsAblationsTest(TempDirCase):
             got = tomllib.load(f)
         self.assertEqual((got["train"]["epochs"], got["train"]["cuda_deterministic"]), (8, True))
 
+    def test_the_added_seeds_go_to_residual_on_both_devices_and_bc_oh_only(self):
+        # Protocol section 7 and its session-31 amendment: SEEDS_ADDED trains residual (CPU
+        # and CUDA) and bc-oh at seeds 10-14, never keyframe.
+        out = os.path.join(self.dir, "out")
+        for hold in ("hold1.0", "hold0.0"):
+            for d in ("D1", "D2"):
+                os.makedirs(os.path.join(out, "data", hold, d))
+                with open(os.path.join(out, "data", hold, d, "collect.json"), "w") as f:
+                    f.write("{}")
+        gpu = os.path.join(self.dir, "gpu")
+        env = dict(os.environ, CD=self.cd, OUT=out, KEEP=os.path.join(self.dir, "keep"),
+                   CONFIGS=self.configs, METHODS="residual bc-oh keyframe", SEEDS_MAIN="0",
+                   SEEDS_ADDED="10 11", SEEDS_OTHERS="0", ABLATION_LABELS="residual-b2",
+                   GPU_DIR=gpu)
+        r = subprocess.run([os.path.join(SOURCE, "scripts", "verdicts.sh"), "gpu-list"],
+                           cwd=SOURCE, env=env, capture_output=True, text=True, timeout=120)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(gpu, "runs.txt")) as f:
+            lines = [line.split() for line in f if not line.startswith("#")]
+        self.assertEqual([n for n, *_ in lines],
+                         ["train/seed0/residual", "train/seed0/bc-oh", "train/seed0/keyframe",
+                          "cuda/seed0/residual", "train/seed0/residual-b2",
+                          "train/seed10/residual", "train/seed10/bc-oh", "cuda/seed10/residual",
+                          "train/seed11/residual", "train/seed11/bc-oh", "cuda/seed11/residual"])
+        # Seed 11 trains on D2, seed 10 on D1 (even and odd, section 4).
+        self.assertEqual({(n, os.path.basename(d)) for n, _, _, d, _ in lines
+                          if n.startswith("train/seed1")},
+                         {("train/seed10/residual", "hold1.0-D1.tar.xz"),
+                          ("train/seed10/bc-oh", "hold1.0-D1.tar.xz"),
+                          ("train/seed11/residual", "hold1.0-D2.tar.xz"),
+                          ("train/seed11/bc-oh", "hold1.0-D2.tar.xz")})
+
     def test_an_unknown_ablation_is_one_line(self):
         env_label = dict(ABLATION_LABELS="two-stream-bc-oh nonsense")
         env = dict(os.environ, CD=self.cd, OUT=os.path.join(self.dir, "out"),
