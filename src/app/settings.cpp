@@ -70,7 +70,7 @@ void visit_settings(S& st, V&& v) {
   v.number("sense.camera", "mount_forward", st.camera.mount_forward, -10, 10);
   v.number("sense.camera", "pitch_deg", st.camera.pitch_deg, -45, 60);
   v.number("sense.camera", "hfov_deg", st.camera.hfov_deg, 10, 170);
-  v.text("sense.camera", "weather", st.camera.weather, camera_weather_names());
+  v.text("sense.camera", "weather", st.camera.weather, camera_weather_settings());
 
   v.number("expert", "cruise_speed", st.expert.cruise_speed, 0.5, 40);
   v.number("expert", "turn_speed", st.expert.turn_speed, 0.5, 40);

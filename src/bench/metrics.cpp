@@ -130,6 +130,7 @@ nlohmann::json episode_to_json(const EpisodeResult& e) {
   if (!e.collision_kind.empty()) j["collision_kind"] = e.collision_kind;
   if (!e.collision_by.empty()) j["collision_by"] = e.collision_by;
   if (!e.failure.empty()) j["failure"] = e.failure;
+  if (!e.weather.empty()) j["weather"] = e.weather;
   if (!e.agent.empty()) j["agent"] = e.agent;
   if (e.has_taxonomy && e.outcome != "infrastructure_failure") {
     auto opt = [](const std::optional<double>& x) {
@@ -165,6 +166,7 @@ EpisodeResult episode_from_json(const nlohmann::json& j) {
     e.collision_kind = j.value("collision_kind", "");
     e.collision_by = j.value("collision_by", "");
     e.failure = j.value("failure", "");
+    e.weather = j.value("weather", "");
     e.agent = j.value("agent", nlohmann::json::object());
     e.wrong_way = j.value("wrong_way", 0);
     e.lane_invasions = j.value("lane_invasions", 0);

@@ -84,6 +84,7 @@ struct EpisodeResult {
   std::string collision_kind;    // collisions: "vehicle" or "pedestrian"
   std::string collision_by;      // collisions: "ego" (the ego struck) or "other" (it was struck)
   std::string failure;           // what went wrong, for infrastructure failures
+  std::string weather;           // the camera's appearance set (sense.view = "camera" only)
   double route_length_m = 0;
   double distance_m = 0;
   double duration_s = 0;

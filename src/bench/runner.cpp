@@ -164,6 +164,7 @@ EpisodeScorer::EpisodeScorer(const World& world, const Task& task, double dt)
   r_.scenario = task.scenario;
   r_.traffic_seed = task.traffic_seed;
   r_.route_length_m = task.route_length;
+  r_.weather = world.weather();
 }
 
 std::string path_cause(const GroundTruth& t) {

@@ -106,6 +106,7 @@ EpisodeMeta recording_meta(const World& world, const Settings& settings) {
   meta.metres_per_pixel = f.metres_per_pixel;
   meta.channels = f.channel_names;
   meta.extra["view"] = f.view;
+  if (world.camera_view()) meta.extra["weather"] = world.weather();  // this episode's
   meta.action_names = {"throttle", "brake"};
   if (world.free_lateral()) meta.action_names.push_back("steer");
   meta.extra["traffic"] = settings.world.traffic;

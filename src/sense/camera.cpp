@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "core/error.hpp"
+#include "core/rng.hpp"
 
 namespace cd {
 
@@ -40,13 +41,30 @@ const std::vector<std::string>& camera_channel_names() {
   return names;
 }
 
+std::vector<std::string> camera_weather_settings() {
+  std::vector<std::string> out = {kTrainWeathers, kHeldOutWeathers};
+  for (const std::string& n : camera_weather_names()) out.push_back(n);
+  return out;
+}
+
+const CameraWeather& episode_weather(const std::string& setting, uint64_t seed) {
+  const bool train = setting == kTrainWeathers;
+  if (!train && setting != kHeldOutWeathers) return camera_weather(setting);
+  std::vector<const CameraWeather*> pool;
+  for (const CameraWeather& w : camera_weathers())
+    if (w.held_out != train) pool.push_back(&w);
+  // Its own stream of the seed (derive_seed's index 7), apart from the traffic's.
+  return *pool[derive_seed(seed, 7) % pool.size()];
+}
+
 const CameraWeather& camera_weather(const std::string& name) {
   std::string known;
   for (const CameraWeather& w : camera_weathers()) {
     if (w.name == name) return w;
     known += (known.empty() ? "" : ", ") + w.name;
   }
-  throw ConfigError("sense.camera.weather: unknown weather '" + name + "' (known: " + known + ")");
+  throw ConfigError("sense.camera.weather: unknown weather '" + name + "' (known: " +
+                    kTrainWeathers + ", " + kHeldOutWeathers + ", " + known + ")");
 }
 
 void check_camera_config(const CameraConfig& c) {
@@ -58,7 +76,7 @@ void check_camera_config(const CameraConfig& c) {
   if (!(c.mount_height > 0 && c.mount_height <= 10)) bad("mount_height must be in (0, 10] m");
   if (!(std::abs(c.mount_forward) <= 10)) bad("mount_forward must be within 10 m of the centre");
   if (!(c.near_m > 0 && c.far_m > 2 * c.near_m)) bad("near_m > 0 and far_m > 2 near_m");
-  camera_weather(c.weather);
+  episode_weather(c.weather, 0);
 }
 
 CameraFrame camera_frame(const CameraConfig& c, const Pose2& ego) {

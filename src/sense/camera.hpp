@@ -40,6 +40,16 @@ const std::vector<CameraWeather>& camera_weathers();
 // Throws ConfigError naming the known sets.
 const CameraWeather& camera_weather(const std::string& name);
 std::vector<std::string> camera_weather_names();
+// `sense.camera.weather` names one set, or a pool that each episode draws one set from: "train"
+// (the four training sets) or "held-out" (the two held out: table 8's new weather).
+inline constexpr const char* kTrainWeathers = "train";
+inline constexpr const char* kHeldOutWeathers = "held-out";
+// What `sense.camera.weather` accepts: the pools, then every set's name.
+std::vector<std::string> camera_weather_settings();
+// The set an episode renders: the setting itself when it names a set, otherwise the pool's set
+// drawn by the episode's seed (the task's traffic seed), so a seed always gets the same one.
+// Throws ConfigError for an unknown setting.
+const CameraWeather& episode_weather(const std::string& setting, uint64_t seed);
 // The camera's frame channels, as recorded and as MuJoCo-Image's RGB frames name them.
 const std::vector<std::string>& camera_channel_names();
 
@@ -51,7 +61,7 @@ struct CameraConfig {
   double pitch_deg = 0.0;      // down positive
   double hfov_deg = 90.0;
   double near_m = 0.3, far_m = 600.0;
-  std::string weather = "clear-noon";
+  std::string weather = kTrainWeathers;  // a set, or a pool drawn per episode (above)
 };
 // Throws ConfigError naming the setting out of range.
 void check_camera_config(const CameraConfig& c);
@@ -124,6 +134,10 @@ class CameraRenderer {
 
   // Writes 3 * height * width bytes (RGB planes, top row first) to out.
   void render(const CameraScene& scene, uint8_t* out);
+  // The appearance set rendered from now on (the static layers are rebuilt in its colours
+  // when it changes). The constructor starts with episode_weather(config's weather, 0).
+  void set_weather(const CameraWeather& weather);
+  const CameraWeather& weather() const { return *weather_; }
 
   const CameraConfig& config() const { return cfg_; }
   size_t frame_bytes() const { return size_t(3) * cfg_.width * cfg_.height; }

@@ -152,7 +152,7 @@ const Rgb kBrakeOn{1.0f, 0.08f, 0.05f}, kBrakeOff{0.32f, 0.03f, 0.03f};
 CameraRenderer::CameraRenderer(const RoadMap& map, CameraConfig cfg)
     : cfg_(std::move(cfg)), weather_(nullptr) {
   check_camera_config(cfg_);
-  weather_ = &camera_weather(cfg_.weather);
+  weather_ = &episode_weather(cfg_.weather, 0);
   gl_ = std::make_unique<GlContext>(cfg_.width, cfg_.height);
   build_static(map);
 }
@@ -164,15 +164,17 @@ CameraRenderer::~CameraRenderer() {
     for (const Cell& cell : layer) glDeleteLists(cell.list, 1);
 }
 
+void CameraRenderer::set_weather(const CameraWeather& weather) { weather_ = &weather; }
+
+// The display lists hold geometry only: render() sets each layer's colour from the weather of
+// the frame before calling them, so a change of weather rebuilds nothing.
 void CameraRenderer::build_static(const RoadMap& map) {
-  const CameraWeather& w = *weather_;
   // The ground, far beyond the map's lanes.
   Vec2 lo = map.min, hi = map.max;
   if (lo.x > hi.x || lo.y > hi.y) lo = hi = Vec2{};
   const double m = 2.0 * cfg_.far_m;
   ground_list_ = glGenLists(1);
   glNewList(ground_list_, GL_COMPILE);
-  set_colour(rgb(w.ground));
   glBegin(GL_QUADS);
   glVertex3d(lo.x - m, lo.y - m, 0.0);
   glVertex3d(hi.x + m, lo.y - m, 0.0);
@@ -211,18 +213,15 @@ void CameraRenderer::build_static(const RoadMap& map) {
         break;
     }
   }
-  // In this order (render() reads layers 0-1 as surfaces, 2-3 as paint).
-  const std::pair<const FlatLayer*, Rgb> order[] = {
-      {&sidewalks, rgb(w.sidewalk)}, {&roads, rgb(w.road)}, {&paint, rgb(w.marking)},
-      {&kerbs, rgb(w.kerb)}};
-  for (const auto& [layer, colour] : order) {
+  // In this order (render() reads layers 0-1 as surfaces, 2-3 as paint; layer_colours gives
+  // their colours).
+  for (const FlatLayer* layer : {&sidewalks, &roads, &paint, &kerbs}) {
     std::vector<Cell>& cells = layers_.emplace_back();
     for (const auto& [key, corners] : layer->cells) {
       Cell cell;
       cell.lo = cell.hi = corners.front();
       cell.list = glGenLists(1);
       glNewList(cell.list, GL_COMPILE);
-      set_colour(colour);
       glBegin(GL_QUADS);
       for (const Vec2& p : corners) {
         cell.lo = {std::min(cell.lo.x, p.x), std::min(cell.lo.y, p.y)};
@@ -275,10 +274,13 @@ void CameraRenderer::render(const CameraScene& scene, uint8_t* out) {
 
   // The flat layers in painter's order, then the solids with depth.
   glDisable(GL_DEPTH_TEST);
+  set_colour(rgb(w.ground));
   glCallList(ground_list_);
   const double half_fov = 0.5 * cfg_.hfov_deg * M_PI / 180.0 + 0.1;
+  const Rgb layer_colours[] = {rgb(w.sidewalk), rgb(w.road), rgb(w.marking), rgb(w.kerb)};
   for (size_t k = 0; k < layers_.size(); ++k) {
     const double reach = k < 2 ? kSurfaceDrawDistance : kPaintDrawDistance;
+    set_colour(layer_colours[k]);
     for (const Cell& cell : layers_[k])
       if (in_view(f, half_fov, cell.lo, cell.hi, reach)) glCallList(cell.list);
   }

@@ -419,6 +419,7 @@ void World::reset(const Task& task) {
     throw SimError("the task's route needs a lane change, which only a free-steering ego makes "
                    "(ego.lateral = \"free\")");
   task_ = task;
+  if (camera_) camera_->set_weather(episode_weather(config_.camera.weather, task.traffic_seed));
   plan_ = net_->lane_plan(task_.route);
   if (task_.timeout_s <= 0) task_.timeout_s = task_.route_length / (5.0 / 3.6) + 20.0;
   std::vector<std::string> args = sumo_args(task.traffic_seed);

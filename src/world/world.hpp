@@ -133,6 +133,9 @@ class World {
   void render_from(const Pose2& seen, uint8_t* out) const;
   const FrameFormat& frame_format() const { return format_; }
   bool camera_view() const { return camera_ != nullptr; }
+  // The camera's appearance set of this episode (sense.camera.weather: a set, or one drawn
+  // from a pool by the task's traffic seed at reset); empty with the BEV.
+  std::string weather() const { return camera_ ? camera_->weather().name : std::string(); }
   void render_packed(uint8_t* out) const;  // the BEV as H*W bytes of channel bits (bev only)
   BevScene scene() const;
   // What the front camera sees now (sense/camera.hpp): the road users in view with their

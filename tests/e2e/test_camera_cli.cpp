@@ -56,6 +56,9 @@ with h5py.File(sys.argv[1], "r") as f:
     assert names == ["red", "green", "blue"], names
     view = f.attrs["view"]
     assert (view.decode() if isinstance(view, bytes) else str(view)) == "camera", view
+    weather = f.attrs["weather"]
+    weather = weather.decode() if isinstance(weather, bytes) else str(weather)
+    assert weather in ("clear-noon", "wet-noon", "hard-rain-noon", "clear-sunset"), weather
 )PY");
   const test::CommandResult py =
       test::run_command({CD_PYTHON, oracle, first});
@@ -78,6 +81,19 @@ with h5py.File(sys.argv[1], "r") as f:
   const json res = run.results("one");
   ASSERT_EQ(res["episodes"].size(), 1u);
   EXPECT_EQ(res["summary"]["infrastructure_failures"], 0);
+  // The default weather is the training pool; each episode names the set it drew.
+  const std::string trained_in = res["episodes"][0].value("weather", "");
+  EXPECT_TRUE(trained_in == "clear-noon" || trained_in == "wet-noon" ||
+              trained_in == "hard-rain-noon" || trained_in == "clear-sunset")
+      << res["episodes"][0].dump();
+  // Table 8's new weather for the camera: the held-out pool, the same checkpoint.
+  const std::string held = test::write_test_config(
+      run.dir(), "empty", kTrain + kCamera + "weather = \"held-out\"\n", "held.toml");
+  test::run_cli_ok(test::eval_args(held, "bc-oh", run.run(), run.suite(), run.dir() / "held", 1));
+  const json new_weather = test::read_json(run.dir() / "held/results.json")["episodes"][0];
+  EXPECT_TRUE(new_weather.value("weather", "") == "soft-rain-sunset" ||
+              new_weather.value("weather", "") == "after-rain-dusk")
+      << new_weather.dump();
   EXPECT_EQ(test::read_text(run.dir() / "one/results.json"),
             test::read_text(run.dir() / "two/results.json"));
 

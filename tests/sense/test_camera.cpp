@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -17,7 +18,12 @@ namespace {
 
 // 288 x 80, hfov 90: f = 144, centre (row 40, col 144); the camera 0.8 m ahead of the ego's
 // centre, 1.4 m up, level.
-CameraConfig config() { return CameraConfig{}; }
+// The tests below draw in one named weather (the default is the training pool).
+CameraConfig config() {
+  CameraConfig c;
+  c.weather = "clear-noon";
+  return c;
+}
 
 struct Pixel {
   int r, g, b;
@@ -320,6 +326,58 @@ TEST(CameraRender, AVehicleBehindTheCameraNeverShows) {
   scene.lights.push_back({{-8, 3}, 0.0, 'r'});
   const std::vector<bool> mask = covered(renderer, scene);
   EXPECT_EQ(std::count(mask.begin(), mask.end(), true), 0);
+}
+
+TEST(CameraRender, ChangingTheWeatherRendersAsARendererMadeInIt) {
+  // A lane, so the static layers' colours show: set_weather must recolour them too.
+  RoadMap map;
+  LaneGeom lane;
+  lane.id = "a_0";
+  lane.edge = "a";
+  lane.width = 3.2;
+  lane.shape = {{-50, 0}, {200, 0}};
+  map.add(lane);
+  CameraScene scene = car_ahead();
+  scene.lights.push_back({{20, 6}, M_PI, 'g'});
+  CameraRenderer switched(map, config());
+  const Frame noon = render(switched, scene);
+  for (const char* name : {"after-rain-dusk", "clear-noon"}) {
+    CameraConfig c = config();
+    c.weather = name;
+    CameraRenderer made(map, c);
+    switched.set_weather(camera_weather(name));
+    EXPECT_EQ(switched.weather().name, name);
+    EXPECT_EQ(render(switched, scene).bytes(), render(made, scene).bytes()) << name;
+  }
+  EXPECT_EQ(render(switched, scene).bytes(), noon.bytes());
+}
+
+TEST(CameraWeathers, APoolGivesEachSeedOneOfItsSetsAndTheSameOneAgain) {
+  std::map<std::string, int> train, held;
+  for (uint64_t seed = 0; seed < 400; ++seed) {
+    const CameraWeather& t = episode_weather(kTrainWeathers, seed);
+    const CameraWeather& h = episode_weather(kHeldOutWeathers, seed);
+    EXPECT_FALSE(t.held_out) << t.name;
+    EXPECT_TRUE(h.held_out) << h.name;
+    EXPECT_EQ(&t, &episode_weather(kTrainWeathers, seed));
+    ++train[t.name];
+    ++held[h.name];
+  }
+  // Every set of a pool is drawn, none far from its share (400 seeds: 100 or 200 expected).
+  ASSERT_EQ(train.size(), 4u);
+  ASSERT_EQ(held.size(), 2u);
+  for (const auto& [name, n] : train) EXPECT_NEAR(n, 100, 40) << name;
+  for (const auto& [name, n] : held) EXPECT_NEAR(n, 200, 50) << name;
+  // A set's name is that set whatever the seed; the default setting is the training pool.
+  EXPECT_EQ(episode_weather("wet-noon", 12345).name, "wet-noon");
+  EXPECT_EQ(CameraConfig{}.weather, kTrainWeathers);
+  try {
+    episode_weather("rainy", 1);
+    FAIL() << "an unknown setting was accepted";
+  } catch (const ConfigError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("'rainy' (known: train, held-out, clear-noon"), std::string::npos) << what;
+  }
 }
 
 TEST(CameraWeathers, FourTrainTwoHeldOutAndUnknownNamesAreOneLine) {

@@ -148,11 +148,17 @@ TEST(WorldCamera, TheCameraViewRendersTheFrontCamera) {
   EXPECT_EQ(f.width, 96);
   EXPECT_EQ(f.bytes(), 3u * 32 * 96);
   EXPECT_EQ(f.channel_names, camera_channel_names());
-  w.reset(w.sample_task(3, 100, 200));
+  const Task task = w.sample_task(3, 100, 200);
+  w.reset(task);
+  // The default weather is the training pool: the episode's set is drawn by its traffic seed.
+  EXPECT_EQ(w.weather(), episode_weather(kTrainWeathers, task.traffic_seed).name);
+  EXPECT_FALSE(camera_weather(w.weather()).held_out);
   for (int i = 0; i < 20; ++i) w.step(Control{0.5, 0.0});
   std::vector<uint8_t> frame(f.bytes()), oracle(f.bytes()), moved(f.bytes());
   w.render(frame.data());
-  CameraRenderer camera(w.map(), s.camera);
+  CameraConfig in_that_weather = s.camera;
+  in_that_weather.weather = w.weather();
+  CameraRenderer camera(w.map(), in_that_weather);
   CameraScene scene = w.camera_scene();
   camera.render(scene, oracle.data());
   EXPECT_EQ(frame, oracle);
@@ -164,6 +170,15 @@ TEST(WorldCamera, TheCameraViewRendersTheFrontCamera) {
   EXPECT_EQ(moved, oracle);
   std::vector<uint8_t> packed(f.pixels());
   EXPECT_THROW(w.render_packed(packed.data()), std::logic_error);
+  // Episodes of other seeds draw other sets of the pool, each the one its seed gives.
+  std::set<std::string> drawn;
+  for (uint64_t seed = 10; seed < 18; ++seed) {
+    const Task t = w.sample_task(seed, 100, 200);
+    w.reset(t);
+    EXPECT_EQ(w.weather(), episode_weather(kTrainWeathers, t.traffic_seed).name);
+    drawn.insert(w.weather());
+  }
+  EXPECT_GE(drawn.size(), 2u);
 }
 
 TEST(WorldCamera, TheDefaultViewIsTheBev) {
