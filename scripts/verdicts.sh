@@ -21,8 +21,9 @@
 #                                # history run, on the data folder it did not train on
 #   scripts/verdicts.sh gpu-list # for a lent GPU (docs/gpu.md): GPU_DIR/runs.txt lists every
 #                                # run of train, ablations and the device check (cuda/) not
-#                                # trained yet (dagger's rollouts
-#                                # need SUMO: not listed), with its config (cuda_deterministic)
+#                                # trained yet (residual's train runs are the CPU's and
+#                                # dagger's rollouts need SUMO: neither is listed), with its
+#                                # config (cuda_deterministic)
 #                                # and data folder (.tar.xz) beside it, for scripts/gpu_runs.py;
 #                                # scripts/gpu_import.py brings the packs back
 #   scripts/verdicts.sh report   # the primary endpoint and residual against each method
@@ -296,6 +297,9 @@ gpu_list_step() {
   for s in $(tr ' ' '\n' <<<"$SEEDS_MAIN $SEEDS_ADDED $SEEDS_OTHERS" | grep . | sort -un); do
     for m in $methods; do
       [[ " $(seeds_of "$m") " == *" $s "* ]] || continue
+      # residual's section-7 runs train on this machine's CPU (protocol section 11); its
+      # CUDA runs are the device check's, below.
+      [[ $m == residual ]] && continue
       gpu_entry "train/seed$s/$m" "$m" "$(config_of "$m")" "$m" "$s" || return
     done
     # The device check (protocol section 11): residual on CUDA at section 7's seeds.
