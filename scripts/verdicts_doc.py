@@ -362,6 +362,8 @@ def power_row():
                                                                    len(other))
     if half <= POWER_TARGET:
         word = "target met"
+        if seeds_added():  # section 7: added seeds are never dropped
+            word += " (seeds 10-14 were added at ten seeds and stay planned: section 7)"
     elif n >= PLANNED["residual"] + ADDED_SEEDS:
         word = "target not met at %d seeds, the most section 7 allows" % n
     elif seeds_added():
