@@ -10,6 +10,7 @@ evaluations, none typed by hand. A claim whose runs are not kept yet says so.
 CD (the binary, default build/causaldrive) and ROOT (the checkout, default this script's) are
 read from the environment.
 """
+import functools
 import glob
 import json
 import os
@@ -321,20 +322,17 @@ def primary_comparison():
                                            "success_rate")[0]
 
 
-_added = []
-
-
+@functools.lru_cache(maxsize=None)
 def seeds_added():
     """Whether section 7's rule has added seeds 10-14 to residual (both devices) and bc-oh:
     some seed above 9 of theirs is evaluated, or the primary comparison at ten seeds or more
     of both misses the power target."""
-    if not _added:
-        high = any(int(os.path.basename(d)[4:]) >= PLANNED["residual"]
-                   for m in ("residual", "residual-cuda", "bc-oh") for d in evaluated_seeds(m))
-        p = None if high else primary_comparison()
-        _added.append(high or (p is not None and min(len(p[1]), len(p[2])) >= PLANNED["residual"]
-                               and 50 * (p[3]["hi"] - p[3]["lo"]) > POWER_TARGET))
-    return _added[0]
+    if any(int(os.path.basename(d)[4:]) >= PLANNED["residual"]
+           for m in ("residual", "residual-cuda", "bc-oh") for d in evaluated_seeds(m)):
+        return True
+    p = primary_comparison()
+    return (p is not None and min(len(p[1]), len(p[2])) >= PLANNED["residual"]
+            and 50 * (p[3]["hi"] - p[3]["lo"]) > POWER_TARGET)
 
 
 def planned(label):

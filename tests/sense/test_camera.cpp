@@ -230,7 +230,8 @@ TEST(CameraRender, BrakeLightsLightWhenTheLeaderBrakes) {
   EXPECT_GT(off.r, 2 * off.b);  // dark red, not the car's blue
 }
 
-TEST(CameraRender, RoadsMarkingsAndGroundWhereTheMapPutsThem) {
+// One 3.2 m driving lane along the x axis, from x = -50 to 200 m.
+RoadMap one_lane_map() {
   RoadMap map;
   LaneGeom lane;
   lane.id = "a_0";
@@ -238,6 +239,11 @@ TEST(CameraRender, RoadsMarkingsAndGroundWhereTheMapPutsThem) {
   lane.width = 3.2;
   lane.shape = {{-50, 0}, {200, 0}};
   map.add(lane);
+  return map;
+}
+
+TEST(CameraRender, RoadsMarkingsAndGroundWhereTheMapPutsThem) {
+  const RoadMap map = one_lane_map();
   CameraRenderer renderer(map, config());
   const Pose2 ego{{0, 0}, 0.0};
   CameraScene scene;
@@ -330,13 +336,7 @@ TEST(CameraRender, AVehicleBehindTheCameraNeverShows) {
 
 TEST(CameraRender, ChangingTheWeatherRendersAsARendererMadeInIt) {
   // A lane, so the static layers' colours show: set_weather must recolour them too.
-  RoadMap map;
-  LaneGeom lane;
-  lane.id = "a_0";
-  lane.edge = "a";
-  lane.width = 3.2;
-  lane.shape = {{-50, 0}, {200, 0}};
-  map.add(lane);
+  const RoadMap map = one_lane_map();
   CameraScene scene = car_ahead();
   scene.lights.push_back({{20, 6}, M_PI, 'g'});
   CameraRenderer switched(map, config());
