@@ -92,16 +92,16 @@ val_suite() {  # KIND -> the validation suite file of town-a KIND
 }
 
 run_variant() {
-  local label=$1 config data
+  local label=$1 config data=""
   config=$(config_of "$label")
-  data=$(data_of "$label" "$config")
   for s in $SEEDS; do
     for m in $METHODS; do
       local run=$OUT/train/$label/seed$s/$m kept=0
       for kind in regular dense; do
         [[ -f $(kept_of "$OUT/eval/$label/seed$s/$m/$kind")/results.json ]] && kept=$((kept + 1))
       done
-      [[ $kept == 2 ]] && continue  # both evaluations kept: nothing to train
+      [[ $kept == 2 ]] && continue  # both evaluations kept: nothing to train (nor to collect)
+      [[ -n $data || -f $run/best.pt ]] || data=$(data_of "$label" "$config")
       [[ -f $run/best.pt ]] || "$CD" train --config "$config" --method "$m" --data "$data" \
         --seed "$s" --out "$run"
       for kind in regular dense; do
