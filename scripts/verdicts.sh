@@ -30,44 +30,96 @@
 #                                # -> results/verdicts/primary.md; tables 11 and B.5, the stall
 #                                # rates -> results/verdicts/secondary.md
 #
+# VIEW=camera runs the same steps as docs/camera.md's plan for the front camera: the base config
+# is configs/residual_paper.toml with sense.view = "camera"; the methods bc-so, bc-oh, keyframe
+# and residual (dagger where compute allows: METHODS) at seeds 0-2; the conditions are table 7's
+# (town-a regular and dense, the training weathers), table 8's (the same suites with
+# sense.camera.weather = "held-out") and table 9's (town-b); the ablations are table 11's
+# two-stream runs; its folders are runs/camera, results/camera (tuning under its recipe/) and
+# configs/camera. gpu-list is the BEV's only (a camera data folder, ~300 MB, does not travel).
+#
 # Several steps run in order (`scripts/verdicts.sh tune choose`); an unknown step is refused
 # before any of them runs. Knobs:
 #   CD       the causaldrive binary   (default: build/causaldrive)
-#   METHODS  the methods tuned, trained, evaluated (default: the seven of section 3)
+#   VIEW     bev (default: docs/protocol.md's runs) or camera (docs/camera.md's plan)
+#   METHODS  the methods tuned, trained, evaluated (default: the seven of section 3; camera:
+#            bc-so bc-oh keyframe residual)
 #   SEEDS_MAIN, SEEDS_OTHERS  section 7's seeds (default: "0 1 ... 9" for residual, bc-oh,
-#            keyframe, dagger; "0 1 2 3 4" for the others)
+#            keyframe, dagger; "0 1 2 3 4" for the others; camera: "0 1 2" for all)
 #   SEEDS_ADDED  the seeds section 7's power rule adds to residual (CPU and the device check's
 #            CUDA) and bc-oh only (default: none; "10 11 12 13 14" once docs/verdicts.md's
 #            power row says they are added)
 #   WORKERS  evaluation workers       (default: 2)
 #   TRAIN    the runs `eval` evaluates: train (section 7's, default) or cuda (the device
 #            check's runs of protocol section 11, labelled METHOD-cuda; untrained seeds skipped)
-#   ABLATION_LABELS  the ablations trained and evaluated (default: all four)
+#   ABLATION_LABELS  the ablations trained and evaluated (default: all four; camera: the two
+#            two-stream ones)
 #   GPU_DIR  gpu-list's folder (default: .gpu/verdicts, which git ignores)
 #   VAL, CONFIGS, RESULTS  choose's input and output folders (default: the kept validation
-#            runs, configs/verdicts, results/verdicts)
+#            runs, configs/verdicts, results/verdicts; camera: results/camera/recipe/eval,
+#            configs/camera, results/camera)
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
 CD=${CD:-build/causaldrive}
-METHODS=${METHODS:-"residual bc-oh keyframe dagger bc-so hd fca"}
+VIEW=${VIEW:-bev}
+BASE=configs/residual_paper.toml  # every config here is BASE with BASE_KEYS and a variant's keys
+# The six conditions of section 2: suite|sensor|folder name. A sensor is the BEV's clean or
+# shifted (eval --sensor), or the camera's held-out weathers (sense.camera.weather).
+case $VIEW in
+  bev)
+    BASE_KEYS=""
+    view_methods="residual bc-oh keyframe dagger bc-so hd fca"
+    view_main="0 1 2 3 4 5 6 7 8 9" view_others="0 1 2 3 4"
+    view_name=verdicts view_title="the verdicts" view_whose="The verdicts'"
+    view_val=results/residual_paper/recipe view_tune_out=runs/recipe  # recipe_validation.sh's
+    view_ablations="two-stream-bc-oh two-stream-keyframe residual-b2 residual-b4"
+    CONDITIONS="verdicts-town-a-regular|clean|a-regular verdicts-town-a-dense|clean|a-dense
+verdicts-town-a-regular|shifted|a-regular-shifted verdicts-town-a-dense|shifted|a-dense-shifted
+verdicts-town-b-regular|clean|b-regular verdicts-town-b-dense|clean|b-dense"
+    ;;
+  camera)
+    BASE_KEYS="sense.view=camera"
+    view_methods="residual bc-oh keyframe bc-so"
+    view_main="0 1 2" view_others="0 1 2"
+    view_name=camera view_title="the camera runs" view_whose="The camera runs'"
+    view_val=results/camera/recipe view_tune_out=""  # $OUT/recipe
+    view_ablations="two-stream-bc-oh two-stream-keyframe"
+    CONDITIONS="verdicts-town-a-regular|clean|a-regular verdicts-town-a-dense|clean|a-dense
+verdicts-town-a-regular|held-out|a-regular-held-out verdicts-town-a-dense|held-out|a-dense-held-out
+verdicts-town-b-regular|clean|b-regular verdicts-town-b-dense|clean|b-dense"
+    ;;
+  *) echo "error: unknown VIEW '$VIEW' (bev or camera)" >&2; exit 2 ;;
+esac
+METHODS=${METHODS:-$view_methods}
 VARIANTS="old signed hold-balanced signed-hold-balanced"
-OUT=${OUT:-runs/verdicts}
-SEEDS_MAIN=${SEEDS_MAIN:-"0 1 2 3 4 5 6 7 8 9"}
-SEEDS_OTHERS=${SEEDS_OTHERS:-"0 1 2 3 4"}
+OUT=${OUT:-runs/$view_name}
+view_tune_out=${view_tune_out:-$OUT/recipe}
+SEEDS_MAIN=${SEEDS_MAIN:-$view_main}
+SEEDS_OTHERS=${SEEDS_OTHERS:-$view_others}
 SEEDS_ADDED=${SEEDS_ADDED:-""}
 WORKERS=${WORKERS:-2}
 TRAIN=${TRAIN:-train}  # the runs evaluated: section 7's (train) or the device check's (cuda)
-KEEP=${KEEP:-results/verdicts}
+KEEP=${KEEP:-results/$view_name}
 source scripts/paper_lib.sh  # run_steps, kept_train, kept_eval
-VAL=${VAL:-results/residual_paper/recipe/eval}  # recipe_validation.sh's kept evaluations
-CONFIGS=${CONFIGS:-configs/verdicts}             # choose's configs
-RESULTS=${RESULTS:-results/verdicts}             # choose's tuning.md
+VAL=${VAL:-$view_val/eval}                  # recipe_validation.sh's kept evaluations
+CONFIGS=${CONFIGS:-configs/$view_name}      # choose's configs
+RESULTS=${RESULTS:-results/$view_name}      # choose's tuning.md
+
+base_config() {  # -> BASE with BASE_KEYS: BASE itself, or $OUT/configs/base.toml
+  [[ -n $BASE_KEYS ]] || { echo "$BASE"; return; }
+  mkdir -p "$OUT/configs"
+  # shellcheck disable=SC2086
+  scripts/config_variant.py "$BASE" "$OUT/configs/base.toml" $BASE_KEYS >&2 || return
+  echo "$OUT/configs/base.toml"
+}
 
 tune() {
-  local m
+  local m config
+  config=$(base_config)
   for m in $METHODS; do
-    SEEDS=0 METHODS=$m CD=$CD scripts/recipe_validation.sh run $VARIANTS
+    SEEDS=0 METHODS=$m CD=$CD CONFIG=$config OUT=$view_tune_out KEEP=${VAL%/eval} \
+      scripts/recipe_validation.sh run $VARIANTS
   done
 }
 
@@ -80,9 +132,9 @@ import json, os, sys
 val, methods, variants, results = sys.argv[1], sys.argv[2].split(), sys.argv[3].split(), sys.argv[4]
 lines = ["# Equal tuning (docs/protocol.md section 6): seed 0, validation suites of town-a",
          "", "Generated by `scripts/verdicts.sh choose` from the kept validation runs "
-         "(`results/residual_paper/recipe/eval`). Rule: the highest mean success over the two "
+         "(`%s`). Rule: the highest mean success over the two "
          "suites; ties: the lower mean collision rate, then the order old, signed, hold-balanced, "
-         "signed-hold-balanced.", "",
+         "signed-hold-balanced." % val, "",
          "| method | variant | regular success / collision % | dense success / collision % | mean success % | chosen |",
          "|---|---|---|---|---:|---|"]
 missing = []
@@ -124,11 +176,12 @@ EOF
     [[ $tag == CHOICE ]] || continue
     overrides=$(scripts/recipe_validation.sh list | sed -n "s/^$v: //p")
     # shellcheck disable=SC2086
-    scripts/config_variant.py configs/residual_paper.toml "$CONFIGS/$m.toml.body" $overrides
-    { printf '# %s for the verdicts: variant "%s", chosen by docs/protocol.md section 6 (the\n' "$m" "$v"
+    scripts/config_variant.py "$BASE" "$CONFIGS/$m.toml.body" $BASE_KEYS $overrides
+    { printf '# %s for %s: variant "%s", chosen by docs/protocol.md section 6 (the\n' "$m" "$view_title" "$v"
       printf '# highest mean success over val-town-a-regular and val-town-a-dense at seed 0, ties by\n'
-      printf '# lower collision then list order; %s %% here; results/verdicts/tuning.md). Written by\n' "$pct"
-      printf '# scripts/verdicts.sh choose: configs/residual_paper.toml with the variant keys.\n\n'
+      printf '# lower collision then list order; %s %% here; %s/tuning.md). Written by\n' "$pct" "$RESULTS"
+      printf '# scripts/verdicts.sh choose: %s with%s the variant keys.\n\n' "$BASE" \
+        "${BASE_KEYS:+ $BASE_KEYS and}"
       cat "$CONFIGS/$m.toml.body"; } > "$CONFIGS/$m.toml.tmp"
     rm "$CONFIGS/$m.toml.body"
     mv "$CONFIGS/$m.toml.tmp" "$CONFIGS/$m.toml"
@@ -188,7 +241,7 @@ ABLATIONS="two-stream-bc-oh|bc-oh|residual.policy_input=history residual.memory_
 two-stream-keyframe|keyframe|residual.policy_input=history residual.memory_target=action residual.weights=keyframe
 residual-b2|residual|residual.branches=2
 residual-b4|residual|residual.branches=4"
-ABLATION_LABELS=${ABLATION_LABELS:-"two-stream-bc-oh two-stream-keyframe residual-b2 residual-b4"}
+ABLATION_LABELS=${ABLATION_LABELS:-$view_ablations}
 
 ablation_base() {  # LABEL -> its base method, or a one-line stop
   local base
@@ -281,6 +334,10 @@ gpu_entry() {  # NAME METHOD CONFIG BASE SEED: one line of GPU_DIR/runs.txt.tmp,
 
 gpu_list_step() {
   local s m label methods=""
+  if [[ $VIEW != bev ]]; then
+    echo "error: gpu-list lists the BEV's runs only: a camera data folder (~300 MB) does not fit a lent machine's 64 MiB carry" >&2
+    return 1
+  fi
   mkdir -p "$GPU_DIR"
   for m in $METHODS; do
     if [[ $m == dagger ]]; then
@@ -321,14 +378,9 @@ condition_names() {  # the six folder names, space-separated
   for c in $CONDITIONS; do printf '%s ' "${c##*|}"; done
 }
 
-# The six conditions of section 2: suite|sensor|folder name.
-CONDITIONS="verdicts-town-a-regular|clean|a-regular verdicts-town-a-dense|clean|a-dense
-verdicts-town-a-regular|shifted|a-regular-shifted verdicts-town-a-dense|shifted|a-dense-shifted
-verdicts-town-b-regular|clean|b-regular verdicts-town-b-dense|clean|b-dense"
-
 eval_dirs=()
 eval_step() {
-  local m s config c suite sensor name run label
+  local m s config cfg c suite sensor name run label
   eval_dirs=()
   for m in $METHODS; do
     config=$(config_of "$m") || return
@@ -343,8 +395,14 @@ eval_step() {
       fi
       for c in $CONDITIONS; do
         IFS='|' read -r suite sensor name <<<"$c"
+        cfg=$config
+        if [[ $sensor == held-out ]]; then  # the camera's table 8: the held-out weathers
+          cfg=$OUT/configs/$m-held-out.toml sensor=clean
+          mkdir -p "$OUT/configs"
+          scripts/config_variant.py "$config" "$cfg" sense.camera.weather=held-out >&2 || return
+        fi
         restore_run "$run" || return
-        kept_eval "$OUT/eval/$label/seed$s/$name" --config "$config" --agent "$m" \
+        kept_eval "$OUT/eval/$label/seed$s/$name" --config "$cfg" --agent "$m" \
           --checkpoint "$run" --label "$label" --suite "$suite" --trials 1 \
           --workers "$WORKERS" --sensor "$sensor" --quiet
         eval_dirs+=("$KEPT")
@@ -363,7 +421,7 @@ report_step() {
   [[ ${#dirs[@]} -gt 0 ]] || { echo "error: nothing evaluated yet in $KEEP/eval" >&2; return 1; }
   mkdir -p "$OUT"
   {
-    echo "# The verdicts' primary endpoint (docs/protocol.md section 2), from the kept evaluations"
+    echo "# $view_whose primary endpoint (docs/protocol.md section 2), from the kept evaluations"
     echo
     "$CD" report "${dirs[@]}" --metrics outcomes
     for m in bc-oh keyframe dagger bc-so hd fca; do
@@ -394,7 +452,7 @@ secondary_report() {  # tables 11 and B.5 on town-a dense, the stall rates -> se
   mapfile -t stopgo < <(find "$KEEP/eval" -path '*-stopgo/results.json' -printf '%h\n' 2>/dev/null | sort)
   [[ ${#dense[@]} -gt 0 || ${#stopgo[@]} -gt 0 ]] || return 0
   {
-    echo "# The verdicts' secondary endpoints (docs/protocol.md section 2), from the kept evaluations"
+    echo "# $view_whose secondary endpoints (docs/protocol.md section 2), from the kept evaluations"
     while IFS='|' read -r label base _; do
       echo
       "$CD" report "${dense[@]}" --metrics outcomes --compare "$label" "$base" </dev/null \

@@ -461,12 +461,9 @@ class VerdictsChooseTest(TempDirCase):
         self.assertIn("val/signed/seed0/d/regular/results.json", table)
 
 
-class VerdictsAblationsTest(TempDirCase):
-    """scripts/verdicts.sh ablations and report, with a stand-in for causaldrive that records
-    its arguments: each ablation trains the residual network from its base method's chosen
-    config with its keys set, on the base method's data folder of the seed; the primary
-    report reads the six conditions of section 3's methods only, the secondary one the
-    ablations on town-a dense and the stop-and-go runs."""
+class VerdictsStandIn(TempDirCase):
+    """A stand-in for causaldrive that records its arguments (train and eval write their
+    output folder), and chosen configs for residual, bc-oh and keyframe."""
 
     def setUp(self):
         super().setUp()
@@ -479,7 +476,8 @@ class VerdictsAblationsTest(TempDirCase):
                     '  while [[ $# -gt 0 ]]; do [[ $1 == --out ]] && out=$2; shift; done\n'
                     '  mkdir -p "$out"; echo "{}" > "$out/checkpoint.json"\n'
                     '  [[ $cmd == eval ]] && echo "{}" > "$out/results.json"\n'
-                    'fi\n')
+                    'fi\n'
+                    'exit 0\n')
         os.chmod(self.cd, 0o755)
         self.configs = os.path.join(self.dir, "configs")
         os.makedirs(self.configs)
@@ -488,16 +486,23 @@ class VerdictsAblationsTest(TempDirCase):
                 f.write('[collect]\nhold_s = %s\n\n[train]\nepochs = %d\n' % (
                     "0.0" if m == "keyframe" else "1.0", len(m)))
 
+    def calls(self):
+        with open(self.log) as f:
+            return [line.split() for line in f.read().splitlines()]
+
+
+class VerdictsAblationsTest(VerdictsStandIn):
+    """scripts/verdicts.sh ablations and report: each ablation trains the residual network
+    from its base method's chosen config with its keys set, on the base method's data folder
+    of the seed; the primary report reads the six conditions of section 3's methods only, the
+    secondary one the ablations on town-a dense and the stop-and-go runs."""
+
     def verdicts(self, *steps):
         env = dict(os.environ, CD=self.cd, OUT=os.path.join(self.dir, "out"),
                    KEEP=os.path.join(self.dir, "keep"), CONFIGS=self.configs,
                    SEEDS_OTHERS="0 1")
         return subprocess.run([os.path.join(SOURCE, "scripts", "verdicts.sh"), *steps],
                               cwd=SOURCE, env=env, capture_output=True, text=True, timeout=120)
-
-    def calls(self):
-        with open(self.log) as f:
-            return [line.split() for line in f.read().splitlines()]
 
     def test_each_ablation_trains_residual_from_its_base_config_and_data(self):
         r = self.verdicts("ablations")
@@ -649,6 +654,78 @@ class VerdictsAblationsTest(TempDirCase):
                            cwd=SOURCE, env=env, capture_output=True, text=True, timeout=120)
         self.assertNotEqual(r.returncode, 0)
         self.assertIn("error: unknown ablation 'nonsense'", r.stderr)
+
+
+class VerdictsCameraTest(VerdictsStandIn):
+    """scripts/verdicts.sh with VIEW=camera (docs/camera.md's plan), the stand-in causaldrive
+    recording its arguments: tuning trains and validates configs with the camera, the chosen
+    configs keep it, table 8's conditions evaluate with the held-out weathers, and gpu-list
+    and an unknown view are refused in one line."""
+
+    def camera(self, *steps, **env):
+        env = dict(dict(os.environ, CD=self.cd, VIEW="camera", OUT=os.path.join(self.dir, "out"),
+                        KEEP=os.path.join(self.dir, "keep"), CONFIGS=self.configs), **env)
+        return subprocess.run([os.path.join(SOURCE, "scripts", "verdicts.sh"), *steps],
+                              cwd=SOURCE, env=env, capture_output=True, text=True, timeout=120)
+
+    def test_tuning_trains_and_validates_with_the_camera_and_choose_keeps_it(self):
+        import tomllib
+        val = os.path.join(self.dir, "val", "eval")
+        r = self.camera("tune", METHODS="bc-oh", VAL=val)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        trains = [c for c in self.calls() if c[0] == "train"]
+        evals = [c for c in self.calls() if c[0] == "eval"]
+        self.assertEqual((len(trains), len(evals)), (4, 8))  # four variants, two suites each
+        for c in trains + evals:
+            with open(c[c.index("--config") + 1], "rb") as f:
+                self.assertEqual(tomllib.load(f)["sense"]["view"], "camera")
+            self.assertTrue(c[c.index("--out") + 1].startswith(
+                os.path.join(self.dir, "out", "recipe") + "/"))
+        # Its evaluations are kept under VAL, where choose reads them.
+        for v in ("old", "signed", "hold-balanced", "signed-hold-balanced"):
+            for kind in ("regular", "dense"):
+                with open(os.path.join(val, v, "seed0", "bc-oh", kind, "results.json"), "w") as f:
+                    json.dump({"summary": {"success_rate": 0.5 if v == "signed" else 0.1,
+                                           "collision_rate": 0.0}}, f)
+        configs, results = os.path.join(self.dir, "chosen"), os.path.join(self.dir, "results")
+        r = self.camera("choose", METHODS="bc-oh", VAL=val, CONFIGS=configs, RESULTS=results)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(configs, "bc-oh.toml"), "rb") as f:
+            text = f.read()
+        got = tomllib.loads(text.decode())
+        self.assertEqual((got["sense"]["view"], got["model"]["pedals"], got["collect"]["hold_s"]),
+                         ("camera", "signed", 0.0))
+        self.assertIn(b"for the camera runs", text)
+        self.assertIn(b"sense.view=camera", text)
+
+    def test_table_8_evaluates_with_the_held_out_weathers(self):
+        import tomllib
+        with open(os.path.join(self.configs, "bc-oh.toml"), "a") as f:
+            f.write('\n[sense]\nview = "camera"\n')
+        out = os.path.join(self.dir, "out")
+        os.makedirs(os.path.join(out, "train", "seed0", "bc-oh"))
+        r = self.camera("eval", METHODS="bc-oh", SEEDS_MAIN="0")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        evals = {c[c.index("--out") + 1].split("/")[-1]: c
+                 for c in self.calls() if c[0] == "eval"}
+        self.assertEqual(sorted(evals), sorted(["a-regular", "a-dense", "a-regular-held-out",
+                                                "a-dense-held-out", "b-regular", "b-dense"]))
+        for name, c in evals.items():
+            self.assertEqual(c[c.index("--sensor") + 1], "clean")
+            with open(c[c.index("--config") + 1], "rb") as f:
+                got = tomllib.load(f)
+            self.assertEqual(got["sense"]["view"], "camera")
+            self.assertEqual(got["sense"].get("camera", {}).get("weather"),
+                             "held-out" if name.endswith("held-out") else None, name)
+            self.assertEqual(got["train"]["epochs"], len("bc-oh"))  # the chosen config's keys
+
+    def test_gpu_list_and_an_unknown_view_are_refused_in_one_line(self):
+        r = self.camera("gpu-list")
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("error: gpu-list lists the BEV's runs only", r.stderr)
+        r = self.camera("report", VIEW="lidar")
+        self.assertEqual(r.returncode, 2)
+        self.assertEqual(r.stderr.strip(), "error: unknown VIEW 'lidar' (bev or camera)")
 
 
 class GpuImportTest(TempDirCase):
