@@ -71,7 +71,7 @@ case $VIEW in
     BASE_KEYS=""
     view_methods="residual bc-oh keyframe dagger bc-so hd fca"
     view_main="0 1 2 3 4 5 6 7 8 9" view_others="0 1 2 3 4"
-    view_name=verdicts view_title="the verdicts" view_whose="The verdicts'"
+    view_name=verdicts view_title="the verdicts"
     view_val=results/residual_paper/recipe view_tune_out=runs/recipe  # recipe_validation.sh's
     view_ablations="two-stream-bc-oh two-stream-keyframe residual-b2 residual-b4"
     CONDITIONS="verdicts-town-a-regular|clean|a-regular verdicts-town-a-dense|clean|a-dense
@@ -82,8 +82,8 @@ verdicts-town-b-regular|clean|b-regular verdicts-town-b-dense|clean|b-dense"
     BASE_KEYS="sense.view=camera"
     view_methods="residual bc-oh keyframe bc-so"
     view_main="0 1 2" view_others="0 1 2"
-    view_name=camera view_title="the camera runs" view_whose="The camera runs'"
-    view_val=results/camera/recipe view_tune_out=""  # $OUT/recipe
+    view_name=camera view_title="the camera runs"
+    view_val=results/camera/recipe view_tune_out=""  # set below: $OUT/recipe
     view_ablations="two-stream-bc-oh two-stream-keyframe"
     CONDITIONS="verdicts-town-a-regular|clean|a-regular verdicts-town-a-dense|clean|a-dense
 verdicts-town-a-regular|held-out|a-regular-held-out verdicts-town-a-dense|held-out|a-dense-held-out
@@ -380,10 +380,15 @@ condition_names() {  # the six folder names, space-separated
 
 eval_dirs=()
 eval_step() {
-  local m s config cfg c suite sensor name run label
+  local m s config cfg held_out c suite sensor name run label
   eval_dirs=()
   for m in $METHODS; do
     config=$(config_of "$m") || return
+    held_out=$OUT/configs/$m-held-out.toml  # the camera's table 8: the held-out weathers
+    if [[ $CONDITIONS == *"|held-out|"* ]]; then
+      mkdir -p "$OUT/configs"
+      scripts/config_variant.py "$config" "$held_out" sense.camera.weather=held-out >&2 || return
+    fi
     # TRAIN=cuda: the device check's runs (section 11), labelled METHOD-cuda.
     label=$m
     [[ $TRAIN == train ]] || label=$m-$TRAIN
@@ -396,11 +401,7 @@ eval_step() {
       for c in $CONDITIONS; do
         IFS='|' read -r suite sensor name <<<"$c"
         cfg=$config
-        if [[ $sensor == held-out ]]; then  # the camera's table 8: the held-out weathers
-          cfg=$OUT/configs/$m-held-out.toml sensor=clean
-          mkdir -p "$OUT/configs"
-          scripts/config_variant.py "$config" "$cfg" sense.camera.weather=held-out >&2 || return
-        fi
+        [[ $sensor != held-out ]] || cfg=$held_out sensor=clean
         restore_run "$run" || return
         kept_eval "$OUT/eval/$label/seed$s/$name" --config "$cfg" --agent "$m" \
           --checkpoint "$run" --label "$label" --suite "$suite" --trials 1 \
@@ -421,7 +422,7 @@ report_step() {
   [[ ${#dirs[@]} -gt 0 ]] || { echo "error: nothing evaluated yet in $KEEP/eval" >&2; return 1; }
   mkdir -p "$OUT"
   {
-    echo "# $view_whose primary endpoint (docs/protocol.md section 2), from the kept evaluations"
+    echo "# ${view_title^}' primary endpoint (docs/protocol.md section 2), from the kept evaluations"
     echo
     "$CD" report "${dirs[@]}" --metrics outcomes
     for m in bc-oh keyframe dagger bc-so hd fca; do
@@ -452,7 +453,7 @@ secondary_report() {  # tables 11 and B.5 on town-a dense, the stall rates -> se
   mapfile -t stopgo < <(find "$KEEP/eval" -path '*-stopgo/results.json' -printf '%h\n' 2>/dev/null | sort)
   [[ ${#dense[@]} -gt 0 || ${#stopgo[@]} -gt 0 ]] || return 0
   {
-    echo "# $view_whose secondary endpoints (docs/protocol.md section 2), from the kept evaluations"
+    echo "# ${view_title^}' secondary endpoints (docs/protocol.md section 2), from the kept evaluations"
     while IFS='|' read -r label base _; do
       echo
       "$CD" report "${dense[@]}" --metrics outcomes --compare "$label" "$base" </dev/null \
