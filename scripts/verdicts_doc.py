@@ -509,8 +509,8 @@ def runs_section():
              ", ".join(tuned) + ". The choices: `results/verdicts/tuning.md` "
              "(`scripts/verdicts.sh choose`).",
              "- **Training** (section 7; residual-cuda: the device check of section 11), the kept runs:", "",
-             "| method | seed | data | device | libtorch | best epoch of | validation loss |",
-             "|---|---:|---|---|---|---|---:|"]
+             "| method | seed | data | device | CPU | libtorch | best epoch of | validation loss |",
+             "|---|---:|---|---|---|---|---|---:|"]
     runs = []
     for path in glob.glob(os.path.join(ROOT, "results", "verdicts", "*", "seed*", "*",
                                        "checkpoint.json")):
@@ -528,20 +528,25 @@ def runs_section():
         rt = ck.get("runtime", {})
         order = methods.index(method) if method in methods else 98 if kind == "cuda" else 99
         runs.append((order, seed, method,
-                     "D%d" % (seed % 2 + 1), rt.get("device", "?"), rt.get("libtorch", "?"),
+                     "D%d" % (seed % 2 + 1), rt.get("device", "?"),
+                     rt.get("cpu", "not recorded"), rt.get("libtorch", "?"),
                      "%d of %d" % (ck["best_epoch"], ck["epochs_done"]), ck["best_loss"]))
-    for _, seed, method, data, device, libtorch, best, loss in sorted(runs):
-        lines.append("| %s | %d | %s | %s | %s | %s | %.5f |" % (method, seed, data, device,
-                                                                libtorch, best, loss))
+    for _, seed, method, data, device, cpu, libtorch, best, loss in sorted(runs):
+        lines.append("| %s | %d | %s | %s | %s | %s | %s | %.5f |" % (
+            method, seed, data, device, cpu, libtorch, best, loss))
     if not runs:
-        lines.append("| (none yet) | | | | | | |")
+        lines.append("| (none yet) | | | | | | | |")
     evaluated = ["%s %d" % (m, len(evaluated_seeds(m))) for m in methods if evaluated_seeds(m)]
-    lines += ["", "Runs trained on a lent GPU are noted in protocol section 11 (docs/gpu.md, "
+    lines += ["", "The CPU is the model the run trained on (`runtime.cpu` of its checkpoint.json; "
+              "runs trained before that field existed say \"not recorded\"): the same seed gives "
+              "the same bytes on one CPU model, and a retrain on another may differ in rounding "
+              "(docs/gpu.md). "
+              "Runs trained on a lent GPU are noted in protocol section 11 (docs/gpu.md, "
               "\"Training runs on a lent machine\"). " +
               ("Seeds evaluated in all six conditions of section 2: %s." % ", ".join(evaluated)
                if evaluated else "No section-7 run is evaluated yet.")]
     devices = {}
-    for _, _, method, _, device, _, _, _ in runs:
+    for _, _, method, _, device, _, _, _, _ in runs:
         if not method.endswith("-cuda"):
             devices.setdefault(method, set()).add(device)
     base = devices.get("residual", set())

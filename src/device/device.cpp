@@ -4,6 +4,8 @@
 #include <unistd.h>
 
 #include <cstdlib>
+#include <fstream>
+#include <string>
 
 #include <ATen/Context.h>
 #include <ATen/autocast_mode.h>
@@ -56,10 +58,27 @@ c10::Device torch_device(const std::string& resolved) {
   return resolved == "cuda" ? c10::Device(c10::DeviceType::CUDA) : c10::Device(c10::DeviceType::CPU);
 }
 
+std::string cpu_model() {
+  static const std::string model = [] {
+    std::ifstream in("/proc/cpuinfo");
+    std::string line;
+    while (std::getline(in, line)) {
+      if (line.rfind("model name", 0) != 0) continue;
+      const std::size_t colon = line.find(':');
+      if (colon == std::string::npos) break;
+      const std::size_t start = line.find_first_not_of(" \t", colon + 1);
+      if (start == std::string::npos) break;
+      return line.substr(start, line.find_last_not_of(" \t") + 1 - start);
+    }
+    return std::string("unknown");
+  }();
+  return model;
+}
+
 nlohmann::json ComputeDevice::record() const {
   return {{"device", name},          {"precision", precision}, {"deterministic", deterministic},
           {"threads", threads},      {"libtorch", TORCH_VERSION},
-          {"cuda", cuda_description()}};
+          {"cuda", cuda_description()}, {"cpu", cpu_model()}};
 }
 
 ComputeDevice compute_device(const std::string& device, const std::string& precision,

@@ -109,6 +109,14 @@ TEST(Device, RunRecordNamesDevicePrecisionAndLibtorch) {
   EXPECT_EQ(rt.at("threads"), 1);
   EXPECT_EQ(rt.at("libtorch"), TORCH_VERSION);
   EXPECT_EQ(ck.at("settings").at("train").at("device"), "auto");
+  // The CPU's model, against util-linux's lscpu (its "Model name:" line).
+  const test::CommandResult l = test::run_command({"/usr/bin/lscpu"});
+  ASSERT_TRUE(l.exited && l.exit_code == 0) << l.describe();
+  const std::size_t at = l.out.find("Model name:");
+  ASSERT_NE(at, std::string::npos) << l.out;
+  const std::size_t from = l.out.find_first_not_of(' ', at + 11);
+  EXPECT_EQ(rt.at("cpu"), l.out.substr(from, l.out.find('\n', from) - from));
+  EXPECT_NE(rt.at("cpu"), "unknown");
 }
 
 // Weights saved on one device drive on the other: the run trained where `auto` put it, and its
