@@ -41,10 +41,14 @@ void rgb_planes_from_gl_rows(const uint8_t* rows, int stride, int width, int hei
   }
 }
 
-void GlContext::read_rgb_planes(uint8_t* out) {
+const uint8_t* GlContext::finish_rgba() {
   make_current();
   glFinish();  // the default framebuffer is our buffer: RGBA, bottom row first
-  rgb_planes_from_gl_rows(buffer_.data(), 4, width_, height_, out);
+  return buffer_.data();
+}
+
+void GlContext::read_rgb_planes(uint8_t* out) {
+  rgb_planes_from_gl_rows(finish_rgba(), 4, width_, height_, out);
 }
 
 }  // namespace cd

@@ -27,6 +27,9 @@ class GlContext {
   void make_current();
   // The default framebuffer's pixels as RGB planes, top row first: 3 x height x width bytes.
   void read_rgb_planes(uint8_t* out);
+  // The default framebuffer when GL has finished drawing: RGBA, bottom row first (valid until
+  // the next call that draws).
+  const uint8_t* finish_rgba();
 
   int width() const { return width_; }
   int height() const { return height_; }

@@ -125,7 +125,8 @@ inline constexpr LightHeadGeometry kLightHead{};
 
 class CameraRenderer {
  public:
-  // Builds the town's static layers (ground, roads, sidewalks, markings, kerbs) once.
+  // Builds the town's flat layers (ground, roads, sidewalks, markings, kerbs) once, as a raster
+  // of 5 cm texels (sense/camera_renderer.cpp).
   // Throws ConfigError for a bad config, SimError when no GL context can be made.
   CameraRenderer(const RoadMap& map, CameraConfig cfg);
   ~CameraRenderer();
@@ -134,8 +135,8 @@ class CameraRenderer {
 
   // Writes 3 * height * width bytes (RGB planes, top row first) to out.
   void render(const CameraScene& scene, uint8_t* out);
-  // The appearance set rendered from now on (the static layers are rebuilt in its colours
-  // when it changes). The constructor starts with episode_weather(config's weather, 0).
+  // The appearance set rendered from now on (the next frame recomputes the flat layers'
+  // colours for it, ~1 ms). The constructor starts with episode_weather(config's weather, 0).
   void set_weather(const CameraWeather& weather);
   const CameraWeather& weather() const { return *weather_; }
 
@@ -143,20 +144,12 @@ class CameraRenderer {
   size_t frame_bytes() const { return size_t(3) * cfg_.width * cfg_.height; }
 
  private:
-  void build_static(const RoadMap& map);
-
   CameraConfig cfg_;
   const CameraWeather* weather_;
   std::unique_ptr<GlContext> gl_;
-  // The static layers: the ground's display list, and per layer (sidewalks, roads, markings,
-  // kerbs; drawn in that order) one display list per square cell of the map with what lies in
-  // it, drawn when the cell's bounds can be in view (sense/camera_renderer.cpp).
-  unsigned ground_list_ = 0;
-  struct Cell {
-    unsigned list = 0;
-    Vec2 lo, hi;  // the bounds of its quads
-  };
-  std::vector<std::vector<Cell>> layers_;
+  // The town's flat layers and the per-pixel rays onto the ground (sense/camera_renderer.cpp).
+  struct Ground;
+  std::unique_ptr<Ground> ground_;
 };
 
 }  // namespace cd

@@ -10,12 +10,13 @@ namespace cd {
 
 GlContext::~GlContext() = default;
 
+struct CameraRenderer::Ground {};
+
 CameraRenderer::CameraRenderer(const RoadMap&, CameraConfig cfg) : cfg_(std::move(cfg)) {
   require_sumo("the front camera");
   throw MissingPart("no GL context");
 }
 CameraRenderer::~CameraRenderer() = default;
 void CameraRenderer::render(const CameraScene&, uint8_t*) {}
-void CameraRenderer::build_static(const RoadMap&) {}
 
 }  // namespace cd

@@ -269,6 +269,60 @@ TEST(CameraRender, RoadsMarkingsAndGroundWhereTheMapPutsThem) {
   EXPECT_TRUE(is(gap, w.road) || is(gap, w.ground)) << gap.r << " " << gap.g << " " << gap.b;
 }
 
+// Every pixel below the horizon, by hand: its centre's ray meets the ground at a point the pixel
+// convention gives (level camera: depth = f * 1.4 / (row + 0.5 - cy)), and the pixel shows the
+// layer under that point: the road inside the lane, the solid right border, the ground beside it,
+// no paint beyond 80 m; the colour is the weather's, fogged by GL_EXP over the eye depth. Margins
+// of 4 cm from every edge allow for the 5 cm texels.
+TEST(CameraRender, EachPixelShowsTheLayerWhereItsRayMeetsTheGround) {
+  const RoadMap map = one_lane_map();  // y in [-1.6, 1.6], x from -50 to 200
+  for (const char* name : {"clear-noon", "hard-rain-noon"}) {
+    CameraConfig c = config();
+    c.weather = name;
+    CameraRenderer renderer(map, c);
+    const CameraWeather& w = camera_weather(name);
+    CameraScene scene;
+    scene.ego = Pose2{{3, -0.4}, 0.05};
+    const Frame frame = render(renderer, scene);
+    const double f = 144, cx = 144, cy = 40, ch = std::cos(0.05), sh = std::sin(0.05);
+    const double camx = 3 + 0.8 * ch, camy = -0.4 + 0.8 * sh;
+    long road = 0, ground = 0, marking = 0, far_road = 0;
+    for (int row = 0; row < 80; ++row)
+      for (int col = 0; col < 288; ++col) {
+        const Pixel p = frame.at(row, col);
+        if (row + 0.5 <= cy) {  // above the horizon: the sky
+          ASSERT_EQ(p.r, std::lround(w.sky[0] * 255)) << row << " " << col;
+          continue;
+        }
+        const double depth = f * 1.4 / (row + 0.5 - cy), right = (col + 0.5 - cx) * depth / f;
+        const double x = camx + depth * ch + right * sh, y = camy + depth * sh - right * ch;
+        const double dist = std::hypot(depth, right);
+        const float* want = nullptr;
+        if (x < -49.9 || x > 199.9) continue;
+        if (dist <= 79.5) {
+          if (std::abs(y) < 1.48) want = w.road, ++road;
+          else if (std::abs(y) > 1.72) want = w.ground, ++ground;
+          else if (std::abs(y + 1.6) < 0.03) want = w.marking, ++marking;
+        } else if (dist >= 80.5 && dist <= 299) {
+          if (std::abs(y) < 1.55) want = w.road, ++far_road;
+          else if (std::abs(y) > 1.65) want = w.ground, ++ground;
+        }
+        if (want == nullptr) continue;
+        const double keep = std::exp(-w.fog_density * depth);
+        for (int k = 0; k < 3; ++k) {
+          const double v = keep * want[k] + (1 - keep) * w.sky[k];
+          const int got = k == 0 ? p.r : k == 1 ? p.g : p.b;
+          ASSERT_LE(std::abs(got - std::lround(v * 255)), 1)
+              << name << " row " << row << " col " << col << " at (" << x << ", " << y << ")";
+        }
+      }
+    EXPECT_GT(road, 1000) << name;
+    EXPECT_GT(ground, 5000) << name;
+    EXPECT_GT(marking, 20) << name;
+    EXPECT_GE(far_road, 5) << name;  // two rows, 3-5 pixels of lane each
+  }
+}
+
 TEST(CameraRender, SameSceneSameBytesAndTheWeatherChangesThem) {
   RoadMap none;
   CameraRenderer renderer(none, config());
