@@ -1,6 +1,6 @@
 // The front camera's renderer (sense/camera.hpp). The town's flat layers (ground, sidewalks,
 // roads, what is painted, kerbs: all at z = 0) are drawn on the CPU: they are rasterized once into
-// a map of kTexel m texels in painter's order, and each pixel below the horizon looks up the texel
+// a map of 5 cm texels (coarser for a map over 1.6 km) in painter's order, and each pixel below the horizon looks up the texel
 // where its centre's ray meets the ground (the rays are fixed in the camera's frame, so a frame
 // costs a rotation and a lookup per pixel). That is what GL draws for a flat polygon without
 // multisampling, a pixel being covered where its centre is, but sampled on the texel grid. The
@@ -79,6 +79,9 @@ struct FlatLayer {
 // The classes of the flat layers, in painter's order, and the sky (where a ray meets no ground).
 enum FlatClass : uint8_t { kGround, kSidewalk, kRoad, kMarking, kKerb, kSky, kClasses };
 constexpr double kTexel = 0.05;  // m: a 0.15 m marking is three texels wide
+// A side of the raster has at most this many texels: a map over 1.6 km on a side gets coarser
+// texels (3.3 km: 10 cm), so the raster stays under ~150 MB whatever the network.
+constexpr double kMaxTexels = 32768;
 constexpr int kTileBits = 4, kTile = 1 << kTileBits;  // 16 x 16 texels a tile
 
 // The flat layers rasterized: each texel's byte holds, at its centre, the surface (ground,
@@ -90,9 +93,11 @@ class FlatRaster {
  public:
   FlatRaster() = default;
   // The texels covering [lo, hi].
-  FlatRaster(Vec2 lo, Vec2 hi) : x0_(lo.x), y0_(lo.y) {
-    w_ = std::max(0, static_cast<int>(std::ceil((hi.x - lo.x) / kTexel)) + 1);
-    h_ = std::max(0, static_cast<int>(std::ceil((hi.y - lo.y) / kTexel)) + 1);
+  FlatRaster(Vec2 lo, Vec2 hi)
+      : x0_(lo.x), y0_(lo.y),
+        texel_(std::max(kTexel, std::max(hi.x - lo.x, hi.y - lo.y) / (kMaxTexels - 1))) {
+    w_ = std::max(0, static_cast<int>(std::ceil((hi.x - lo.x) / texel_)) + 1);
+    h_ = std::max(0, static_cast<int>(std::ceil((hi.y - lo.y) / texel_)) + 1);
     tw_ = (w_ + kTile - 1) >> kTileBits;
     th_ = (h_ + kTile - 1) >> kTileBits;
     tiles_.assign(static_cast<size_t>(tw_) * th_, kUniform | 0u);
@@ -133,7 +138,8 @@ class FlatRaster {
   }
 
   // The network-frame point (x, y) in texels from the raster's corner.
-  Vec2 texel_coords(Vec2 p) const { return {(p.x - x0_) / kTexel, (p.y - y0_) / kTexel}; }
+  Vec2 texel_coords(Vec2 p) const { return {(p.x - x0_) / texel_, (p.y - y0_) / texel_}; }
+  double texel() const { return texel_; }  // m
 
   // The byte of the texel holding the point at texel coordinates (fx, fy).
   uint8_t at(double fx, double fy) const {
@@ -175,7 +181,7 @@ class FlatRaster {
     }
   }
 
-  double x0_ = 0, y0_ = 0;
+  double x0_ = 0, y0_ = 0, texel_ = kTexel;
   int w_ = 0, h_ = 0, tw_ = 0, th_ = 0;
   std::vector<uint32_t> tiles_;  // kUniform | value, or the tile's index in pool_
   std::vector<uint8_t> pool_;    // kTile x kTile texels per tile, rows of kTile
@@ -414,7 +420,7 @@ void CameraRenderer::render(const CameraScene& scene, uint8_t* out) {
     const double a = g.a[row], b0 = g.b0[row], db = g.db[row];
     const Vec2 start = g.raster.texel_coords(
         {camera.x + a * ch - b0 * sh, camera.y + a * sh + b0 * ch});
-    const double dx = -db * sh / kTexel, dy = db * ch / kTexel;
+    const double dx = -db * sh / g.raster.texel(), dy = db * ch / g.raster.texel();
     const uint8_t* level = &g.level[o0];
     for (int col = 0; col < W; ++col) {
       uint8_t cls = kSky;

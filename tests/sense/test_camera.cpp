@@ -192,8 +192,12 @@ TEST(CameraRender, TheLitLampFollowsTheLightAndIsAFewPixelsAt30m) {
       const Frame f = render(renderer, scene);
       const Pixel red = f.at(lamp(0)), yellow = f.at(lamp(1)), green = f.at(lamp(2));
       if (ahead > 20) {  // at 30 m only the lit lamp's hue is asked of its pixel
-        if (state == 'r') EXPECT_GT(red.r, 2 * red.g) << ahead;
-        if (state == 'g') EXPECT_GT(green.g, 2 * green.r) << ahead;
+        if (state == 'r') {
+          EXPECT_GT(red.r, 2 * red.g) << ahead;
+        }
+        if (state == 'g') {
+          EXPECT_GT(green.g, 2 * green.r) << ahead;
+        }
         continue;
       }
       if (state == 'r') {
@@ -321,6 +325,28 @@ TEST(CameraRender, EachPixelShowsTheLayerWhereItsRayMeetsTheGround) {
     EXPECT_GT(marking, 20) << name;
     EXPECT_GE(far_road, 5) << name;  // two rows, 3-5 pixels of lane each
   }
+}
+
+// A network over 1.6 km on a side gets coarser texels (10 cm for 3.3 km) rather than a raster of
+// gigabytes: a 5 km lane (15 cm texels) still shows its road and the ground beside it.
+TEST(CameraRender, AFiveKilometreLaneStillShowsWhereItIs) {
+  RoadMap map;
+  LaneGeom lane;
+  lane.id = "long_0";
+  lane.edge = "long";
+  lane.width = 3.2;
+  lane.shape = {{0, 0}, {5000, 0}};
+  map.add(lane);
+  CameraRenderer renderer(map, config());
+  const Pose2 ego{{4200, 0}, 0.0};
+  CameraScene scene;
+  scene.ego = ego;
+  const Frame f = render(renderer, scene);
+  const CameraWeather& w = camera_weather("clear-noon");
+  const Pixel road = f.at(*camera_project(renderer.config(), ego, {4212, 0.3}, 0));
+  const Pixel ground = f.at(*camera_project(renderer.config(), ego, {4212, 6}, 0));
+  EXPECT_EQ(road.g, std::lround(w.road[1] * 255));
+  EXPECT_EQ(ground.g, std::lround(w.ground[1] * 255));
 }
 
 TEST(CameraRender, SameSceneSameBytesAndTheWeatherChangesThem) {
