@@ -529,7 +529,8 @@ def runs_section():
         order = methods.index(method) if method in methods else 98 if kind == "cuda" else 99
         runs.append((order, seed, method,
                      "D%d" % (seed % 2 + 1), rt.get("device", "?"),
-                     rt.get("cpu", "not recorded"), rt.get("libtorch", "?"),
+                     "%s (%s)" % (rt["cpu"], rt.get("cpu_kernels", "?")) if "cpu" in rt
+                     else "not recorded", rt.get("libtorch", "?"),
                      "%d of %d" % (ck["best_epoch"], ck["epochs_done"]), ck["best_loss"]))
     for _, seed, method, data, device, cpu, libtorch, best, loss in sorted(runs):
         lines.append("| %s | %d | %s | %s | %s | %s | %s | %.5f |" % (
@@ -537,7 +538,8 @@ def runs_section():
     if not runs:
         lines.append("| (none yet) | | | | | | | |")
     evaluated = ["%s %d" % (m, len(evaluated_seeds(m))) for m in methods if evaluated_seeds(m)]
-    lines += ["", "The CPU is the model the run trained on (`runtime.cpu` of its checkpoint.json; "
+    lines += ["", "The CPU is the model the run trained on and ATen's kernels there (`runtime.cpu` "
+              "and `cpu_kernels` of its checkpoint.json; "
               "runs trained before that field existed say \"not recorded\"): the same seed gives "
               "the same bytes on one CPU model, and a retrain on another may differ in rounding "
               "(docs/gpu.md). "

@@ -8,6 +8,7 @@
 #include <string>
 
 #include <ATen/Context.h>
+#include <ATen/Version.h>
 #include <ATen/autocast_mode.h>
 #include <torch/cuda.h>
 #include <torch/version.h>
@@ -75,10 +76,23 @@ std::string cpu_model() {
   return model;
 }
 
+// The vector kernels ATen dispatches to on this CPU (DEFAULT, AVX2, AVX512), from the line
+// "CPU capability usage: X" of at::show_config() (libtorch does not export the query itself).
+std::string cpu_kernels() {
+  static const std::string kernels = [] {
+    const std::string config = at::show_config(), key = "CPU capability usage: ";
+    const std::size_t at = config.find(key);
+    if (at == std::string::npos) return std::string("unknown");
+    const std::size_t from = at + key.size();
+    return config.substr(from, config.find_first_of("\r\n", from) - from);
+  }();
+  return kernels;
+}
+
 nlohmann::json ComputeDevice::record() const {
   return {{"device", name},          {"precision", precision}, {"deterministic", deterministic},
           {"threads", threads},      {"libtorch", TORCH_VERSION},
-          {"cuda", cuda_description()}, {"cpu", cpu_model()}};
+          {"cuda", cuda_description()}, {"cpu", cpu_model()}, {"cpu_kernels", cpu_kernels()}};
 }
 
 ComputeDevice compute_device(const std::string& device, const std::string& precision,

@@ -27,6 +27,9 @@ c10::Device torch_device(const std::string& resolved);  // "cpu" | "cuda"
 // where it does not say (not Linux, or an architecture that names it otherwise).
 std::string cpu_model();
 
+// The vector kernels ATen picks on this CPU: DEFAULT, AVX2 or AVX512 (or "unknown").
+std::string cpu_kernels();
+
 // Where a run trains, with what it needs to say in its record.
 struct ComputeDevice {
   std::string name = "cpu";  // cpu | cuda
@@ -34,10 +37,11 @@ struct ComputeDevice {
   std::string precision = "fp32";  // fp32 | bf16 (CUDA only)
   bool deterministic = true;       // the CPU always; CUDA when train.cuda_deterministic
   int threads = 1;                 // torch's intra-op threads
-  // {"device", "precision", "deterministic", "threads", "libtorch", "cuda", "cpu"}: the run
-  // record's "runtime" (libtorch's version; CUDA as build_info's cuda_description, or the GPU's
-  // name; the CPU's model, cpu_model()). Same seed, same bytes holds per CPU model: libtorch
-  // picks its kernels by the CPU's instruction set, so two CPUs can round differently.
+  // {"device", "precision", "deterministic", "threads", "libtorch", "cuda", "cpu",
+  // "cpu_kernels"}: the run record's "runtime" (libtorch's version; CUDA as build_info's
+  // cuda_description, or the GPU's name; the CPU's model and ATen's kernels for it). Same seed,
+  // same bytes holds per CPU model: libtorch picks its kernels by the CPU's instruction set, so
+  // two CPUs can round differently.
   nlohmann::json record() const;
 };
 

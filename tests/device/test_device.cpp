@@ -38,7 +38,9 @@ std::string error_of(const std::function<void()>& fn) {
 TEST(Device, ResolvesAutoCpuAndCudaOrSaysWhatIsMissing) {
   EXPECT_EQ(resolve_device("cpu", "train.device"), "cpu");
   EXPECT_EQ(resolve_device("auto", "train.device"), cuda_usable() ? "cuda" : "cpu");
-  if (!torch_built_with_cuda()) EXPECT_FALSE(cuda_usable());
+  if (!torch_built_with_cuda()) {
+    EXPECT_FALSE(cuda_usable());
+  }
   const std::string bad = error_of([] { resolve_device("gpu", "eval.device"); });
   EXPECT_EQ(bad, "eval.device must be auto, cpu or cuda (got 'gpu')");
   if (cuda_usable()) {
@@ -65,8 +67,12 @@ TEST(Device, Bf16IsForCudaAndTheRecordNamesEverything) {
   EXPECT_EQ(r.at("deterministic"), true);
   EXPECT_EQ(r.at("threads"), 3);
   EXPECT_EQ(r.at("libtorch"), TORCH_VERSION);
-  if (!torch_built_with_cuda()) EXPECT_EQ(r.at("cuda"), "not built in");
-  if (cuda_usable()) EXPECT_NE(r.at("cuda").get<std::string>().find("device(s)"), std::string::npos);
+  if (!torch_built_with_cuda()) {
+    EXPECT_EQ(r.at("cuda"), "not built in");
+  }
+  if (cuda_usable()) {
+    EXPECT_NE(r.at("cuda").get<std::string>().find("device(s)"), std::string::npos);
+  }
   EXPECT_EQ(error_of([] { compute_device("cpu", "bf16", false, 1); }),
             "train.precision = \"bf16\" runs on CUDA only, and train.device resolved to the CPU "
             "here; use \"fp32\"");
@@ -117,6 +123,17 @@ TEST(Device, RunRecordNamesDevicePrecisionAndLibtorch) {
   const std::size_t from = l.out.find_first_not_of(' ', at + 11);
   EXPECT_EQ(rt.at("cpu"), l.out.substr(from, l.out.find('\n', from) - from));
   EXPECT_NE(rt.at("cpu"), "unknown");
+  // ATen's kernels: one of its three on x86 (DispatchStub.h's CPUCapability), never above what
+  // the CPU's flags allow.
+  const std::string kernels = rt.at("cpu_kernels");
+  EXPECT_TRUE(kernels == "DEFAULT" || kernels == "AVX2" || kernels == "AVX512") << kernels;
+  const std::string flags = test::read_text("/proc/cpuinfo");
+  if (flags.find(" avx2") == std::string::npos) {
+    EXPECT_EQ(kernels, "DEFAULT");
+  }
+  if (flags.find(" avx512f") == std::string::npos) {
+    EXPECT_NE(kernels, "AVX512");
+  }
 }
 
 // Weights saved on one device drive on the other: the run trained where `auto` put it, and its
