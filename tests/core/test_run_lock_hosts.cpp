@@ -36,11 +36,14 @@ std::string holder_text(const std::string& token, long beat, const std::string& 
          "\nbeat " + std::to_string(beat) + "\nstate " + state + "\n";
 }
 
+// As the lock's own writer does: the new text over the old, then cut to its length, so a reader
+// never sees the file empty (truncating first left an empty file between two calls, which a
+// loaded machine's reader saw now and then as "no holder" and took the live job's folder).
 void write_lock(const std::string& file, const std::string& text) {
   int fd = ::open(file.c_str(), O_RDWR | O_CREAT, 0644);
   ASSERT_GE(fd, 0);
-  ASSERT_EQ(::ftruncate(fd, 0), 0);
   ASSERT_EQ(::pwrite(fd, text.data(), text.size(), 0), static_cast<ssize_t>(text.size()));
+  ASSERT_EQ(::ftruncate(fd, static_cast<off_t>(text.size())), 0);
   ::close(fd);
 }
 
