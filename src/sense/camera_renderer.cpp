@@ -99,8 +99,8 @@ class FlatRaster {
     w_ = std::max(0, static_cast<int>(std::ceil((hi.x - lo.x) / texel_)) + 1);
     h_ = std::max(0, static_cast<int>(std::ceil((hi.y - lo.y) / texel_)) + 1);
     tw_ = (w_ + kTile - 1) >> kTileBits;
-    th_ = (h_ + kTile - 1) >> kTileBits;
-    tiles_.assign(static_cast<size_t>(tw_) * th_, kUniform | 0u);
+    const int th = (h_ + kTile - 1) >> kTileBits;
+    tiles_.assign(static_cast<size_t>(tw_) * th, kUniform | 0u);
   }
 
   // Paints the triangle: `overlay` sets what lies on top, otherwise the surface too. A texel is
@@ -182,7 +182,7 @@ class FlatRaster {
   }
 
   double x0_ = 0, y0_ = 0, texel_ = kTexel;
-  int w_ = 0, h_ = 0, tw_ = 0, th_ = 0;
+  int w_ = 0, h_ = 0, tw_ = 0;  // texels a side; tiles a row
   std::vector<uint32_t> tiles_;  // kUniform | value, or the tile's index in pool_
   std::vector<uint8_t> pool_;    // kTile x kTile texels per tile, rows of kTile
 };

@@ -235,24 +235,29 @@ TEST(CameraRender, BrakeLightsLightWhenTheLeaderBrakes) {
 }
 
 // One 3.2 m driving lane along the x axis, from x = -50 to 200 m.
-RoadMap one_lane_map() {
+RoadMap one_lane_map(Vec2 from = {-50, 0}, Vec2 to = {200, 0}) {
   RoadMap map;
   LaneGeom lane;
   lane.id = "a_0";
   lane.edge = "a";
   lane.width = 3.2;
-  lane.shape = {{-50, 0}, {200, 0}};
+  lane.shape = {from, to};
   map.add(lane);
   return map;
+}
+
+// The frame of an empty road seen from `ego`.
+Frame render_empty(CameraRenderer& renderer, Pose2 ego) {
+  CameraScene scene;
+  scene.ego = ego;
+  return render(renderer, scene);
 }
 
 TEST(CameraRender, RoadsMarkingsAndGroundWhereTheMapPutsThem) {
   const RoadMap map = one_lane_map();
   CameraRenderer renderer(map, config());
   const Pose2 ego{{0, 0}, 0.0};
-  CameraScene scene;
-  scene.ego = ego;
-  const Frame f = render(renderer, scene);
+  const Frame f = render_empty(renderer, ego);
   const CameraWeather& w = camera_weather("clear-noon");
   auto is = [](Pixel p, const float c[3]) {
     return std::abs(p.r - std::lround(c[0] * 255)) <= 1 &&
@@ -285,9 +290,7 @@ TEST(CameraRender, EachPixelShowsTheLayerWhereItsRayMeetsTheGround) {
     c.weather = name;
     CameraRenderer renderer(map, c);
     const CameraWeather& w = camera_weather(name);
-    CameraScene scene;
-    scene.ego = Pose2{{3, -0.4}, 0.05};
-    const Frame frame = render(renderer, scene);
+    const Frame frame = render_empty(renderer, Pose2{{3, -0.4}, 0.05});
     const double f = 144, cx = 144, cy = 40, ch = std::cos(0.05), sh = std::sin(0.05);
     const double camx = 3 + 0.8 * ch, camy = -0.4 + 0.8 * sh;
     long road = 0, ground = 0, marking = 0, far_road = 0;
@@ -330,18 +333,9 @@ TEST(CameraRender, EachPixelShowsTheLayerWhereItsRayMeetsTheGround) {
 // A network over 1.6 km on a side gets coarser texels (10 cm for 3.3 km) rather than a raster of
 // gigabytes: a 5 km lane (15 cm texels) still shows its road and the ground beside it.
 TEST(CameraRender, AFiveKilometreLaneStillShowsWhereItIs) {
-  RoadMap map;
-  LaneGeom lane;
-  lane.id = "long_0";
-  lane.edge = "long";
-  lane.width = 3.2;
-  lane.shape = {{0, 0}, {5000, 0}};
-  map.add(lane);
-  CameraRenderer renderer(map, config());
+  CameraRenderer renderer(one_lane_map({0, 0}, {5000, 0}), config());
   const Pose2 ego{{4200, 0}, 0.0};
-  CameraScene scene;
-  scene.ego = ego;
-  const Frame f = render(renderer, scene);
+  const Frame f = render_empty(renderer, ego);
   const CameraWeather& w = camera_weather("clear-noon");
   const Pixel road = f.at(*camera_project(renderer.config(), ego, {4212, 0.3}, 0));
   const Pixel ground = f.at(*camera_project(renderer.config(), ego, {4212, 6}, 0));
