@@ -529,7 +529,7 @@ def runs_section():
         order = methods.index(method) if method in methods else 98 if kind == "cuda" else 99
         runs.append((order, seed, method,
                      "D%d" % (seed % 2 + 1), rt.get("device", "?"),
-                     "%s (%s)" % (rt["cpu"], rt.get("cpu_kernels", "?")) if "cpu" in rt
+                     "%s (%s)" % (rt["cpu"], rt.get("cpu_kernels", "kernels not recorded")) if "cpu" in rt
                      else "not recorded", rt.get("libtorch", "?"),
                      "%d of %d" % (ck["best_epoch"], ck["epochs_done"]), ck["best_loss"]))
     for _, seed, method, data, device, cpu, libtorch, best, loss in sorted(runs):
@@ -540,7 +540,7 @@ def runs_section():
     evaluated = ["%s %d" % (m, len(evaluated_seeds(m))) for m in methods if evaluated_seeds(m)]
     lines += ["", "The CPU is the model the run trained on and ATen's kernels there (`runtime.cpu` "
               "and `cpu_kernels` of its checkpoint.json; "
-              "runs trained before that field existed say \"not recorded\"): the same seed gives "
+              "runs trained before those fields existed say \"not recorded\"): the same seed gives "
               "the same bytes on one CPU model, and a retrain on another may differ in rounding "
               "(docs/gpu.md). "
               "Runs trained on a lent GPU are noted in protocol section 11 (docs/gpu.md, "
