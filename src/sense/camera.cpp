@@ -1,4 +1,5 @@
 #include "sense/camera.hpp"
+#include "sense/camera_projection.hpp"
 
 #include <cmath>
 
@@ -93,14 +94,17 @@ CameraFrame camera_frame(const CameraConfig& c, const Pose2& ego) {
   return f;
 }
 
-std::optional<PixelPoint> camera_project(const CameraConfig& c, const Pose2& ego, Vec2 p,
-                                         double z) {
-  const CameraFrame f = camera_frame(c, ego);
-  const Vec3 d{p.x - f.position.x, p.y - f.position.y, z - f.position.z};
+std::optional<PixelPoint> camera_project(const CameraFrame& f, double near_m, Vec3 p) {
+  const Vec3 d{p.x - f.position.x, p.y - f.position.y, p.z - f.position.z};
   const double depth = dot(d, f.forward);
-  if (depth < c.near_m) return std::nullopt;
+  if (depth < near_m) return std::nullopt;
   return PixelPoint{f.cy - f.focal * dot(d, f.up) / depth,
                     f.cx + f.focal * dot(d, f.right) / depth, depth};
+}
+
+std::optional<PixelPoint> camera_project(const CameraConfig& c, const Pose2& ego, Vec2 p,
+                                         double z) {
+  return camera_project(camera_frame(c, ego), c.near_m, Vec3{p.x, p.y, z});
 }
 
 }  // namespace cd

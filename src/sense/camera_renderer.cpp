@@ -18,6 +18,7 @@
 
 #include "render/gl_context.hpp"
 #include "sense/camera.hpp"
+#include "sense/camera_projection.hpp"
 
 namespace cd {
 
@@ -483,17 +484,14 @@ void CameraRenderer::render(const CameraScene& scene, uint8_t* out) {
     double lo_r = 1e300, hi_r = -1e300, lo_c = 1e300, hi_c = -1e300;
     bool bounded = true;
     for (size_t k = 0; k < q.vertices() && bounded; ++k) {
-      const Vec3 d{q.xyz[3 * k] - f.position.x, q.xyz[3 * k + 1] - f.position.y,
-                   q.xyz[3 * k + 2] - f.position.z};
-      const double depth = dot(d, f.forward);
-      if (depth < cfg_.near_m) {
+      const auto px =
+          camera_project(f, cfg_.near_m, {q.xyz[3 * k], q.xyz[3 * k + 1], q.xyz[3 * k + 2]});
+      if (!px) {
         bounded = false;
         break;
       }
-      const double row = f.cy - f.focal * dot(d, f.up) / depth;
-      const double col = f.cx + f.focal * dot(d, f.right) / depth;
-      lo_r = std::min(lo_r, row), hi_r = std::max(hi_r, row);
-      lo_c = std::min(lo_c, col), hi_c = std::max(hi_c, col);
+      lo_r = std::min(lo_r, px->row), hi_r = std::max(hi_r, px->row);
+      lo_c = std::min(lo_c, px->col), hi_c = std::max(hi_c, px->col);
     }
     if (bounded) {
       r0 = static_cast<int>(std::clamp(std::floor(lo_r) - 1, 0.0, double(H)));
