@@ -132,8 +132,8 @@ def device_of(method, seed_dir):
     base = os.path.join(ROOT, "results", "verdicts", "train", seed, method)
     for path in (base, base + ".record"):
         try:
-            return json.load(open(os.path.join(path, "checkpoint.json"))).get(
-                "runtime", {}).get("device")
+            with open(os.path.join(path, "checkpoint.json")) as f:
+                return json.load(f).get("runtime", {}).get("device")
         except OSError:
             continue
     return None
@@ -281,22 +281,49 @@ def ablation_rows():
     return out
 
 
-def residual_vs_row(claim, label, m, pending, pending_cmd):
+def residual_vs_row(claim, label, m, pending, pending_cmd, device=None):
     """Tables 7-9's row of residual's runs LABEL (residual, or the device check's
     residual-cuda) against method M: report --compare over the six conditions, on the seeds
-    evaluated in all six; interim, with no verdict, until every planned seed of both is in.
-    Returns the row and the two lists of seed folders, or the pending row and None."""
+    evaluated in all six (with DEVICE, only M's seeds trained on it: the device-matched rows);
+    interim, with no verdict, until every planned seed of both is in. Returns the row and the
+    two lists of seed folders, or the pending row and None."""
     cmd = "scripts/verdicts.sh report"
     res, other = evaluated_seeds(label), evaluated_seeds(m)
+    planned_other = planned(m)
+    if device is not None:
+        # Section 11 (session 35): M's seeds trained elsewhere leave this comparison and its plan.
+        planned_other -= sum(device_of(m, d) != device for d in other)
+        other = [d for d in other if device_of(m, d) == device]
     paper = "mean success %.1f against %.1f %%" % (paper_success("residual"), paper_success(m))
     if not res or not other:
         return [claim, paper, pending, "not yet", pending_cmd], None
     row = compare_row(claim, paper, seed_dirs(res + other), label, m, "success_rate", True, cmd)
     row[2] += " (%d x %d seeds)" % (len(res), len(other))
-    if len(res) < planned(label) or len(other) < planned(m):
+    if len(res) < planned(label) or len(other) < planned_other:
         row[3] = "not yet (interim: %d of %d and %d of %d planned seeds evaluated)" % (
-            len(res), planned(label), len(other), planned(m))
+            len(res), planned(label), len(other), planned_other)
     return row, (res, other)
+
+
+def devices_of(method, seeds):
+    """{device: [seed numbers]} of METHOD's seed folders SEEDS, from their run records."""
+    out = {}
+    for d in seeds:
+        out.setdefault(str(device_of(method, d)), []).append(int(os.path.basename(d)[4:]))
+    return out
+
+
+def seed_ranges(numbers):
+    """[0, 1, 2, 5, 7, 8] -> "0-2, 5, 7-8"."""
+    parts, numbers = [], sorted(numbers)
+    start = prev = numbers[0]
+    for n in numbers[1:] + [None]:
+        if n is not None and n == prev + 1:
+            prev = n
+            continue
+        parts.append(str(start) if start == prev else "%d-%d" % (start, prev))
+        start = prev = n
+    return ", ".join(parts)
 
 
 def seed_dirs(seeds):
@@ -314,7 +341,10 @@ def primary_comparison():
     residual on the CPU against bc-oh. Returns (label, residual's seeds, bc-oh's seeds, the
     comparison over the six conditions), or None before both have a seed."""
     cuda, other = evaluated_seeds("residual-cuda"), evaluated_seeds("bc-oh")
-    label = "residual-cuda" if cuda and len(cuda) >= len(other) else "residual"
+    # Section 11 (session 35): with some of bc-oh's seeds trained on the CPU, the device-matched
+    # comparison cannot hold all of them, and the CPU one stays the primary.
+    all_cuda = all(device_of("bc-oh", d) == "cuda" for d in other)
+    label = "residual-cuda" if cuda and all_cuda and len(cuda) >= len(other) else "residual"
     res = evaluated_seeds(label)
     if not res or not other:
         return None
@@ -389,11 +419,16 @@ def primary_rows():
                 row[2] += "; device confounded: residual on %s, %s on %s" % (
                     "/".join(sorted(map(str, devices[0]))), m,
                     "/".join(sorted(map(str, devices[1]))))
+            elif len(devices[1]) > 1:
+                row[2] += "; devices mixed: %s on %s" % (m, ", ".join(
+                    "%s (seeds %s)" % (dev, seed_ranges(n))
+                    for dev, n in sorted(devices_of(m, seeds[1]).items())))
             # Section 11 (session 30): the device-matched comparison becomes the primary one
-            # once residual's CUDA runs have the other's seeds; until then both wait.
+            # once residual's CUDA runs have the other's seeds (all trained on CUDA: session
+            # 35); until then both wait.
             cuda = len(evaluated_seeds("residual-cuda"))
-            if m in ("bc-oh", "keyframe") and cuda < len(seeds[1]) and \
-                    not row[3].startswith("not yet"):
+            if m in ("bc-oh", "keyframe") and devices[1] == {"cuda"} and \
+                    cuda < len(seeds[1]) and not row[3].startswith("not yet"):
                 row[3] = ("not yet (interim: residual's CUDA runs have %d of the %d seeds of "
                           "%s; protocol section 11)" % (cuda, len(seeds[1]), m))
         out.append(row)
@@ -443,7 +478,8 @@ def device_rows():
         claim = ("Seed 001 tables 7-9, device-matched: residual beats %s, all trained on CUDA "
                  "(%s)" % (m, "primary endpoint" if m == "bc-oh" else "the primary endpoint's mean"))
         out.append(residual_vs_row(claim, "residual-cuda", m,
-                                   "pending: residual's CUDA runs are not evaluated yet", cmd)[0])
+                                   "pending: residual's CUDA runs are not evaluated yet", cmd,
+                                   device="cuda")[0])
     return out
 
 

@@ -81,6 +81,16 @@ def copy_kept_run(tmp, label, seed, condition, src_method=None, src_seed=None):
     return res["episodes"]
 
 
+def write_run_record(tmp, label, seed, device):
+    """The run record (checkpoint.json, its runtime's device) of LABEL's training seed SEED in
+    the checkout under tmp, where verdicts_doc.py reads a run's device."""
+    import json
+    dst = os.path.join(tmp, "results", "verdicts", "train", "seed%d" % seed, label)
+    os.makedirs(dst, exist_ok=True)
+    with open(os.path.join(dst, "checkpoint.json"), "w") as f:
+        json.dump({"runtime": {"device": device}}, f)
+
+
 def success_share(episodes):
     return sum(e["outcome"] == "success" for e in episodes) / len(episodes)
 
@@ -145,6 +155,8 @@ class Docs(unittest.TestCase):
                     endpoint[label, s] = 100 * sum(
                         success_share(copy_kept_run(tmp, label, s, c, src_m, s % 3))
                         for c in CONDITIONS) / 6
+            for s in (0, 1):
+                write_run_record(tmp, "bc-oh", s, "cuda")
             doc = load_verdicts_doc(tmp)
             rows = doc.device_rows()
             diffs = [endpoint["residual-cuda", s] - endpoint["residual", s] for s in (0, 1, 2)]
@@ -159,6 +171,24 @@ class Docs(unittest.TestCase):
             b = sum(endpoint["bc-oh", s] for s in (0, 1)) / 2
             self.assertIn("%+.1f [" % (a - b), rows[1][2])
             self.assertIn("pending", rows[2][2])  # keyframe: nothing evaluated
+            # Protocol section 11 (session 35): a bc-oh seed trained on the CPU leaves the
+            # device-matched comparison and its plan; the CPU comparison takes it and says so.
+            for c in CONDITIONS:
+                copy_kept_run(tmp, "bc-oh", 2, c, "bc-oh", 2)
+            write_run_record(tmp, "bc-oh", 2, "cpu")
+            for s in (0, 1, 2):
+                write_run_record(tmp, "residual", s, "cpu")
+            doc = load_verdicts_doc(tmp)
+            matched = doc.device_rows()[1]
+            self.assertIn("(4 x 2 seeds)", matched[2])
+            self.assertIn("%+.1f [" % (a - b), matched[2])
+            self.assertTrue(matched[3].startswith("not yet (interim: 4 of 10 and 2 of 9 planned"),
+                            matched[3])
+            cpu = doc.primary_rows()[0]
+            self.assertIn("(3 x 3 seeds); devices mixed: bc-oh on cpu (seeds 2), cuda (seeds 0-1)",
+                          cpu[2])
+            self.assertNotIn("device confounded", cpu[2])
+            self.assertEqual(doc.primary_comparison()[0], "residual")
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
@@ -179,6 +209,8 @@ class Docs(unittest.TestCase):
                 for s in seeds:
                     for c in CONDITIONS:
                         copy_kept_run(tmp, label, s, c, src_m, s % 3)
+                    if label == "bc-oh":
+                        write_run_record(tmp, label, s, "cuda")
             doc = load_verdicts_doc(tmp)
             cpu = doc.primary_rows()[0]
             lo, hi = map(float, re.search(r"\[([-+.\d]+), ([-+.\d]+)\] points", cpu[2]).groups())
