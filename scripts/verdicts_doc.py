@@ -527,6 +527,16 @@ def rows():
     return out
 
 
+def run_columns(ck, seed):
+    """A training run's columns of the runs tables from its checkpoint.json CK: data folder,
+    device, CPU (and its kernels), libtorch, best epoch, validation loss."""
+    rt = ck.get("runtime", {})
+    return ("D%d" % (seed % 2 + 1), rt.get("device", "?"),
+            "%s (%s)" % (rt["cpu"], rt.get("cpu_kernels", "kernels not recorded")) if "cpu" in rt
+            else "not recorded", rt.get("libtorch", "?"),
+            "%d of %d" % (ck["best_epoch"], ck["epochs_done"]), ck["best_loss"])
+
+
 def runs_section():
     """Section 10 of the protocol, every run reported: the tuning evaluations kept so far and
     each kept training run of section 7 with its data folder and device."""
@@ -561,18 +571,37 @@ def runs_section():
             method = method[:-len(".record")]
         if kind == "cuda":  # the device check's runs (protocol section 11)
             method += "-cuda"
-        rt = ck.get("runtime", {})
         order = methods.index(method) if method in methods else 98 if kind == "cuda" else 99
-        runs.append((order, seed, method,
-                     "D%d" % (seed % 2 + 1), rt.get("device", "?"),
-                     "%s (%s)" % (rt["cpu"], rt.get("cpu_kernels", "kernels not recorded")) if "cpu" in rt
-                     else "not recorded", rt.get("libtorch", "?"),
-                     "%d of %d" % (ck["best_epoch"], ck["epochs_done"]), ck["best_loss"]))
+        runs.append((order, seed, method) + run_columns(ck, seed))
     for _, seed, method, data, device, cpu, libtorch, best, loss in sorted(runs):
         lines.append("| %s | %d | %s | %s | %s | %s | %s | %.5f |" % (
             method, seed, data, device, cpu, libtorch, best, loss))
     if not runs:
         lines.append("| (none yet) | | | | | | | |")
+    # Records a retrain replaced (results/verdicts/superseded/seedN/METHOD.record, each with a
+    # why.txt): listed, never read by a comparison.
+    old = []
+    for path in glob.glob(os.path.join(ROOT, "results", "verdicts", "superseded", "seed*", "*",
+                                       "checkpoint.json")):
+        folder = os.path.dirname(path)
+        with open(path) as f:
+            ck = json.load(f)
+        with open(os.path.join(folder, "why.txt")) as f:
+            why = " ".join(f.read().split())
+        seed = int(os.path.basename(os.path.dirname(folder))[4:])
+        method = os.path.basename(folder)
+        method = method[:-len(".record")] if method.endswith(".record") else method
+        old.append((methods.index(method) if method in methods else 99, seed, method) +
+                   run_columns(ck, seed) + (why,))
+    if old:
+        lines += ["", "- **Superseded** (section 10): trained, replaced by the run above of the "
+                  "same method and seed before any evaluation of theirs, and kept as records in "
+                  "`results/verdicts/superseded/`:", "",
+                  "| method | seed | data | device | CPU | libtorch | best epoch of | "
+                  "validation loss | why |", "|---|---:|---|---|---|---|---|---:|---|"]
+        for _, seed, method, data, device, cpu, libtorch, best, loss, why in sorted(old):
+            lines.append("| %s | %d | %s | %s | %s | %s | %s | %.5f | %s |" % (
+                method, seed, data, device, cpu, libtorch, best, loss, why))
     evaluated = ["%s %d" % (m, len(evaluated_seeds(m))) for m in methods if evaluated_seeds(m)]
     lines += ["", "The CPU is the model the run trained on and ATen's kernels there (`runtime.cpu` "
               "and `cpu_kernels` of its checkpoint.json; "
