@@ -192,6 +192,38 @@ class Docs(unittest.TestCase):
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
+    def test_superseded_records_are_listed_beside_the_runs_that_replaced_them(self):
+        # Protocol section 10: a record a retrain replaced stays listed, with its why.txt, in
+        # its own table; the kept run of the same method and seed stays in the runs table.
+        import json
+        import shutil
+        import tempfile
+        tmp = tempfile.mkdtemp(prefix="cd_superseded_")
+        try:
+            def record(folder, loss, cpu):
+                os.makedirs(folder)
+                runtime = {"device": "cpu", "libtorch": "1.13.0"}
+                if cpu:
+                    runtime.update(cpu="AMD EPYC", cpu_kernels="AVX2")
+                with open(os.path.join(folder, "checkpoint.json"), "w") as f:
+                    json.dump({"best_epoch": 7, "epochs_done": 8, "best_loss": loss,
+                               "runtime": runtime}, f)
+            v = os.path.join(tmp, "results", "verdicts")
+            record(os.path.join(v, "train", "seed13", "residual.record"), 0.150381, True)
+            record(os.path.join(v, "superseded", "seed13", "residual.record"), 0.164951, False)
+            with open(os.path.join(v, "superseded", "seed13", "residual.record", "why.txt"),
+                      "w") as f:
+                f.write("Trained on another\nmachine.\n")
+            lines = load_verdicts_doc(tmp).runs_section()
+            self.assertIn("| residual | 13 | D2 | cpu | AMD EPYC (AVX2) | 1.13.0 | 7 of 8 | "
+                          "0.15038 |", lines)
+            self.assertIn("| residual | 13 | D2 | cpu | not recorded | 1.13.0 | 7 of 8 | "
+                          "0.16495 | Trained on another machine. |", lines)
+            # The superseded record is not one of the kept runs.
+            self.assertEqual(sum("| residual | 13 |" in line for line in lines), 2)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
     def test_the_power_rule_judges_the_primary_comparison_of_the_day(self):
         # A checkout of its own: residual and bc-oh at ten seeds, residual-cuda at eight, by
         # copies of the kept 25-task runs (seed s copies the kept seed s % 3; residual-cuda's
