@@ -292,8 +292,9 @@ def residual_vs_row(claim, label, m, pending, pending_cmd, device=None):
     planned_other = planned(m)
     if device is not None:
         # Section 11 (session 35): M's seeds trained elsewhere leave this comparison and its plan.
-        planned_other -= sum(device_of(m, d) != device for d in other)
-        other = [d for d in other if device_of(m, d) == device]
+        kept = [d for d in other if device_of(m, d) == device]
+        planned_other -= len(other) - len(kept)
+        other = kept
     paper = "mean success %.1f against %.1f %%" % (paper_success("residual"), paper_success(m))
     if not res or not other:
         return [claim, paper, pending, "not yet", pending_cmd], None
@@ -413,21 +414,18 @@ def primary_rows():
             claim, "residual", m, "pending: the protocol's runs (docs/protocol.md) are not "
             "evaluated yet", "`scripts/verdicts.sh report`")
         if seeds:
-            devices = ({device_of("residual", d) for d in seeds[0]},
-                       {device_of(m, d) for d in seeds[1]})
-            if not devices[0] & devices[1]:
+            res_devices, by_device = set(devices_of("residual", seeds[0])), devices_of(m, seeds[1])
+            if not res_devices & set(by_device):
                 row[2] += "; device confounded: residual on %s, %s on %s" % (
-                    "/".join(sorted(map(str, devices[0]))), m,
-                    "/".join(sorted(map(str, devices[1]))))
-            elif len(devices[1]) > 1:
+                    "/".join(sorted(res_devices)), m, "/".join(sorted(by_device)))
+            elif len(by_device) > 1:
                 row[2] += "; devices mixed: %s on %s" % (m, ", ".join(
-                    "%s (seeds %s)" % (dev, seed_ranges(n))
-                    for dev, n in sorted(devices_of(m, seeds[1]).items())))
+                    "%s (seeds %s)" % (dev, seed_ranges(n)) for dev, n in sorted(by_device.items())))
             # Section 11 (session 30): the device-matched comparison becomes the primary one
             # once residual's CUDA runs have the other's seeds (all trained on CUDA: session
             # 35); until then both wait.
             cuda = len(evaluated_seeds("residual-cuda"))
-            if m in ("bc-oh", "keyframe") and devices[1] == {"cuda"} and \
+            if m in ("bc-oh", "keyframe") and set(by_device) == {"cuda"} and \
                     cuda < len(seeds[1]) and not row[3].startswith("not yet"):
                 row[3] = ("not yet (interim: residual's CUDA runs have %d of the %d seeds of "
                           "%s; protocol section 11)" % (cuda, len(seeds[1]), m))
@@ -527,6 +525,26 @@ def rows():
     return out
 
 
+def run_records(kind):
+    """(seed, method, folder, checkpoint.json) of each run record under
+    results/verdicts/KIND/seedN/: METHOD/, or METHOD.record/ for a run whose weights are over
+    5 MB (its record kept, its weights not)."""
+    for path in glob.glob(os.path.join(ROOT, "results", "verdicts", kind, "seed*", "*",
+                                       "checkpoint.json")):
+        folder = os.path.dirname(path)
+        with open(path) as f:
+            ck = json.load(f)
+        method = os.path.basename(folder)
+        if method.endswith(".record"):
+            method = method[:-len(".record")]
+        yield int(os.path.basename(os.path.dirname(folder))[4:]), method, folder, ck
+
+
+def run_line(method, seed, cols):
+    """A runs table's row: METHOD, SEED and run_columns' COLS."""
+    return "| %s | %d | %s | %s | %s | %s | %s | %.5f |" % ((method, seed) + cols)
+
+
 def run_columns(ck, seed):
     """A training run's columns of the runs tables from its checkpoint.json CK: data folder,
     device, CPU (and its kernels), libtorch, best epoch, validation loss."""
@@ -558,50 +576,31 @@ def runs_section():
              "| method | seed | data | device | CPU | libtorch | best epoch of | validation loss |",
              "|---|---:|---|---|---|---|---|---:|"]
     runs = []
-    for path in glob.glob(os.path.join(ROOT, "results", "verdicts", "*", "seed*", "*",
-                                       "checkpoint.json")):
-        kind = path.split(os.sep)[-4]
-        if kind not in ("train", "cuda"):
-            continue
-        ck = json.load(open(path))
-        seed = int(os.path.basename(os.path.dirname(os.path.dirname(path)))[4:])
-        # A run whose weights are over 5 MB is kept as its record (METHOD.record/).
-        method = os.path.basename(os.path.dirname(path))
-        if method.endswith(".record"):
-            method = method[:-len(".record")]
-        if kind == "cuda":  # the device check's runs (protocol section 11)
-            method += "-cuda"
-        order = methods.index(method) if method in methods else 98 if kind == "cuda" else 99
-        runs.append((order, seed, method) + run_columns(ck, seed))
-    for _, seed, method, data, device, cpu, libtorch, best, loss in sorted(runs):
-        lines.append("| %s | %d | %s | %s | %s | %s | %s | %.5f |" % (
-            method, seed, data, device, cpu, libtorch, best, loss))
+    for kind in ("train", "cuda"):
+        for seed, method, _, ck in run_records(kind):
+            if kind == "cuda":  # the device check's runs (protocol section 11)
+                method += "-cuda"
+            order = methods.index(method) if method in methods else 98 if kind == "cuda" else 99
+            runs.append((order, seed, method, run_columns(ck, seed)))
+    lines += [run_line(method, seed, cols) for _, seed, method, cols in sorted(runs)]
     if not runs:
         lines.append("| (none yet) | | | | | | | |")
     # Records a retrain replaced (results/verdicts/superseded/seedN/METHOD.record, each with a
     # why.txt): listed, never read by a comparison.
     old = []
-    for path in glob.glob(os.path.join(ROOT, "results", "verdicts", "superseded", "seed*", "*",
-                                       "checkpoint.json")):
-        folder = os.path.dirname(path)
-        with open(path) as f:
-            ck = json.load(f)
+    for seed, method, folder, ck in run_records("superseded"):
         with open(os.path.join(folder, "why.txt")) as f:
             why = " ".join(f.read().split())
-        seed = int(os.path.basename(os.path.dirname(folder))[4:])
-        method = os.path.basename(folder)
-        method = method[:-len(".record")] if method.endswith(".record") else method
-        old.append((methods.index(method) if method in methods else 99, seed, method) +
-                   run_columns(ck, seed) + (why,))
+        old.append((methods.index(method) if method in methods else 99, seed, method,
+                    run_columns(ck, seed), why))
     if old:
         lines += ["", "- **Superseded** (section 10): trained, replaced by the run above of the "
                   "same method and seed before any evaluation of theirs, and kept as records in "
                   "`results/verdicts/superseded/`:", "",
                   "| method | seed | data | device | CPU | libtorch | best epoch of | "
                   "validation loss | why |", "|---|---:|---|---|---|---|---|---:|---|"]
-        for _, seed, method, data, device, cpu, libtorch, best, loss, why in sorted(old):
-            lines.append("| %s | %d | %s | %s | %s | %s | %s | %.5f | %s |" % (
-                method, seed, data, device, cpu, libtorch, best, loss, why))
+        lines += [run_line(method, seed, cols) + " %s |" % why
+                  for _, seed, method, cols, why in sorted(old)]
     evaluated = ["%s %d" % (m, len(evaluated_seeds(m))) for m in methods if evaluated_seeds(m)]
     lines += ["", "The CPU is the model the run trained on and ATen's kernels there (`runtime.cpu` "
               "and `cpu_kernels` of its checkpoint.json; "
@@ -613,7 +612,7 @@ def runs_section():
               ("Seeds evaluated in all six conditions of section 2: %s." % ", ".join(evaluated)
                if evaluated else "No section-7 run is evaluated yet.")]
     devices = {}
-    for _, _, method, _, device, _, _, _, _ in runs:
+    for _, _, method, (_, device, *_) in runs:
         if not method.endswith("-cuda"):
             devices.setdefault(method, set()).add(device)
     base = devices.get("residual", set())

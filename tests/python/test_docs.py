@@ -81,14 +81,16 @@ def copy_kept_run(tmp, label, seed, condition, src_method=None, src_seed=None):
     return res["episodes"]
 
 
-def write_run_record(tmp, label, seed, device):
-    """The run record (checkpoint.json, its runtime's device) of LABEL's training seed SEED in
-    the checkout under tmp, where verdicts_doc.py reads a run's device."""
+def write_run_record(tmp, label, seed, device, kind="train", runtime=(), **fields):
+    """The run record (checkpoint.json: its runtime's device, RUNTIME's other keys and FIELDS)
+    of LABEL's training seed SEED under results/verdicts/KIND in the checkout under tmp, where
+    verdicts_doc.py reads it; returns its folder."""
     import json
-    dst = os.path.join(tmp, "results", "verdicts", "train", "seed%d" % seed, label)
+    dst = os.path.join(tmp, "results", "verdicts", kind, "seed%d" % seed, label)
     os.makedirs(dst, exist_ok=True)
     with open(os.path.join(dst, "checkpoint.json"), "w") as f:
-        json.dump({"runtime": {"device": device}}, f)
+        json.dump(dict(fields, runtime=dict(runtime, device=device)), f)
+    return dst
 
 
 def success_share(episodes):
@@ -195,24 +197,17 @@ class Docs(unittest.TestCase):
     def test_superseded_records_are_listed_beside_the_runs_that_replaced_them(self):
         # Protocol section 10: a record a retrain replaced stays listed, with its why.txt, in
         # its own table; the kept run of the same method and seed stays in the runs table.
-        import json
         import shutil
         import tempfile
         tmp = tempfile.mkdtemp(prefix="cd_superseded_")
         try:
-            def record(folder, loss, cpu):
-                os.makedirs(folder)
-                runtime = {"device": "cpu", "libtorch": "1.13.0"}
-                if cpu:
-                    runtime.update(cpu="AMD EPYC", cpu_kernels="AVX2")
-                with open(os.path.join(folder, "checkpoint.json"), "w") as f:
-                    json.dump({"best_epoch": 7, "epochs_done": 8, "best_loss": loss,
-                               "runtime": runtime}, f)
-            v = os.path.join(tmp, "results", "verdicts")
-            record(os.path.join(v, "train", "seed13", "residual.record"), 0.150381, True)
-            record(os.path.join(v, "superseded", "seed13", "residual.record"), 0.164951, False)
-            with open(os.path.join(v, "superseded", "seed13", "residual.record", "why.txt"),
-                      "w") as f:
+            epochs = {"best_epoch": 7, "epochs_done": 8}
+            write_run_record(tmp, "residual.record", 13, "cpu", runtime={
+                "libtorch": "1.13.0", "cpu": "AMD EPYC", "cpu_kernels": "AVX2"},
+                best_loss=0.150381, **epochs)
+            old = write_run_record(tmp, "residual.record", 13, "cpu", kind="superseded",
+                                   runtime={"libtorch": "1.13.0"}, best_loss=0.164951, **epochs)
+            with open(os.path.join(old, "why.txt"), "w") as f:
                 f.write("Trained on another\nmachine.\n")
             lines = load_verdicts_doc(tmp).runs_section()
             self.assertIn("| residual | 13 | D2 | cpu | AMD EPYC (AVX2) | 1.13.0 | 7 of 8 | "
