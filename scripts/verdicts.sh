@@ -16,7 +16,9 @@
 #                                # bc-oh and keyframe (table 11), residual with 2 and 4 memory
 #                                # branches (B.5), each from its base method's chosen config
 #   scripts/verdicts.sh secondary  # the ablations on verdicts-town-a-dense, and every section-7
-#                                # run on the stop-and-go suites (town-a-stopgo, town-b-stopgo)
+#                                # run on the stop-and-go suites (town-a-stopgo, town-b-stopgo);
+#                                # a run without weights here (not trained yet, or over 5 MB and
+#                                # trained elsewhere) is named and skipped, for a later call
 #   scripts/verdicts.sh probe    # the copycat probe (causaldrive probe) of every trained
 #                                # history run, on the data folder it did not train on
 #   scripts/verdicts.sh gpu-list # for a lent GPU (docs/gpu.md): GPU_DIR/runs.txt lists every
@@ -272,28 +274,43 @@ ablations_step() {
   done
 }
 
+has_weights() {  # RUN: true when its weights are here (trained here, or kept in git)
+  [[ -f $1/best.pt || -d $(kept_of "$1") ]]
+}
+
+# Evaluates what has weights and names what it skips: a run not trained yet, or one whose
+# weights (over 5 MB: residual's) were not kept and are not on this machine, is left for a
+# later call. A kept evaluation is never run again, weights or none.
 secondary_step() {
-  local label config s m suite
+  local label config s m suite skipped=0
+  secondary_eval() {  # RUN FOLDER ARGS...: kept_eval FOLDER unless kept, or skipped
+    local run=$1 folder=$2; shift 2
+    [[ -f $(kept_of "$folder")/results.json ]] && return 0
+    if ! has_weights "$run"; then
+      echo "$run: no weights here (not trained yet, or not kept), $folder skipped" >&2
+      skipped=$((skipped + 1))
+      return 0
+    fi
+    restore_run "$run" || return
+    kept_eval "$folder" --checkpoint "$run" "$@" --trials 1 --workers "$WORKERS" --quiet
+  }
   for label in $ABLATION_LABELS; do
     config=$(ablation_config "$label") || return
     for s in $SEEDS_OTHERS; do
-      restore_run "$OUT/train/seed$s/$label" || return
-      kept_eval "$OUT/eval/$label/seed$s/a-dense" --config "$config" --agent residual \
-        --checkpoint "$OUT/train/seed$s/$label" --label "$label" \
-        --suite verdicts-town-a-dense --trials 1 --workers "$WORKERS" --quiet
+      secondary_eval "$OUT/train/seed$s/$label" "$OUT/eval/$label/seed$s/a-dense" \
+        --config "$config" --agent residual --label "$label" --suite verdicts-town-a-dense || return
     done
   done
   for m in $METHODS; do
     config=$(config_of "$m") || return
     for s in $(seeds_of "$m"); do
       for suite in town-a-stopgo town-b-stopgo; do
-        restore_run "$OUT/train/seed$s/$m" || return
-        kept_eval "$OUT/eval/$m/seed$s/${suite#town-}" --config "$config" --agent "$m" \
-          --checkpoint "$OUT/train/seed$s/$m" --label "$m" --suite "$suite" --trials 1 \
-          --workers "$WORKERS" --quiet
+        secondary_eval "$OUT/train/seed$s/$m" "$OUT/eval/$m/seed$s/${suite#town-}" \
+          --config "$config" --agent "$m" --label "$m" --suite "$suite" || return
       done
     done
   done
+  (( skipped == 0 )) || echo "secondary: $skipped evaluation(s) skipped for want of weights (above)" >&2
 }
 
 probe_step() {  # the probe's row (protocol section 11): each trained run of a history method
@@ -394,7 +411,7 @@ eval_step() {
     [[ $TRAIN == train ]] || label=$m-$TRAIN
     for s in $(seeds_of "$m"); do
       run=$OUT/$TRAIN/seed$s/$m
-      if [[ $TRAIN != train && ! -f $run/best.pt && ! -d $(kept_of "$run") ]]; then
+      if [[ $TRAIN != train ]] && ! has_weights "$run"; then
         echo "$run: no weights here (not trained on this machine), skipped" >&2
         continue
       fi
