@@ -274,8 +274,23 @@ ablations_step() {
   done
 }
 
-has_weights() {  # RUN: true when its weights are here (trained here, or kept in git)
-  [[ -f $1/best.pt || -d $(kept_of "$1") ]]
+has_weights() {  # RUN: a finished run whose weights are here: kept in git, or kept as a
+  local kept; kept=$(kept_of "$1")  # record with its weights (over 5 MB) in RUN. A best.pt
+  [[ -d $kept || ( -d $kept.record && -f $1/best.pt ) ]]  # alone is an unfinished run's.
+}
+
+# secondary_eval RUN FOLDER ARGS...: kept_eval FOLDER of RUN, unless kept already; a RUN
+# without weights here is named and counted in the caller's `skipped`.
+secondary_eval() {
+  local run=$1 folder=$2; shift 2
+  [[ -f $(kept_of "$folder")/results.json ]] && return 0
+  if ! has_weights "$run"; then
+    echo "$run: no weights here (not trained yet, or not kept), $folder skipped" >&2
+    skipped=$((skipped + 1))
+    return 0
+  fi
+  restore_run "$run" || return
+  kept_eval "$folder" --checkpoint "$run" "$@" --trials 1 --workers "$WORKERS" --quiet
 }
 
 # Evaluates what has weights and names what it skips: a run not trained yet, or one whose
@@ -283,17 +298,6 @@ has_weights() {  # RUN: true when its weights are here (trained here, or kept in
 # later call. A kept evaluation is never run again, weights or none.
 secondary_step() {
   local label config s m suite skipped=0
-  secondary_eval() {  # RUN FOLDER ARGS...: kept_eval FOLDER unless kept, or skipped
-    local run=$1 folder=$2; shift 2
-    [[ -f $(kept_of "$folder")/results.json ]] && return 0
-    if ! has_weights "$run"; then
-      echo "$run: no weights here (not trained yet, or not kept), $folder skipped" >&2
-      skipped=$((skipped + 1))
-      return 0
-    fi
-    restore_run "$run" || return
-    kept_eval "$folder" --checkpoint "$run" "$@" --trials 1 --workers "$WORKERS" --quiet
-  }
   for label in $ABLATION_LABELS; do
     config=$(ablation_config "$label") || return
     for s in $SEEDS_OTHERS; do
@@ -314,13 +318,12 @@ secondary_step() {
 }
 
 probe_step() {  # the probe's row (protocol section 11): each trained run of a history method
-  local m s run kept
+  local m s run
   for m in $METHODS; do
     [[ $m == bc-so ]] && continue  # no history to probe
     for s in $(seeds_of "$m"); do
       run=$OUT/train/seed$s/$m
-      kept=$(kept_of "$run")
-      [[ -d $kept || ( -d $kept.record && -f $run/best.pt ) ]] || continue  # not trained yet
+      has_weights "$run" || continue  # not trained yet
       restore_run "$run" || return
       kept_json "$OUT/probe/seed$s/$m.json" "$CD" probe --checkpoint "$run" \
         --data "$(data_of "$m" $((s + 1)))" --max-frames 2000 --json || return

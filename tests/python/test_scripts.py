@@ -553,8 +553,11 @@ class VerdictsAblationsTest(VerdictsStandIn):
 
     def test_secondary_evaluates_what_has_weights_and_names_what_it_skips(self):
         out, keep = os.path.join(self.dir, "out"), os.path.join(self.dir, "keep")
-        os.makedirs(os.path.join(out, "train", "seed0", "bc-oh"))  # trained here
-        open(os.path.join(out, "train", "seed0", "bc-oh", "best.pt"), "w").close()
+        os.makedirs(os.path.join(out, "train", "seed0", "bc-oh"))  # trained here, weights
+        open(os.path.join(out, "train", "seed0", "bc-oh", "best.pt"), "w").close()  # not kept
+        os.makedirs(os.path.join(keep, "train", "seed0", "bc-oh.record"))
+        os.makedirs(os.path.join(out, "train", "seed3", "bc-oh"))  # unfinished: no record
+        open(os.path.join(out, "train", "seed3", "bc-oh", "best.pt"), "w").close()
         os.makedirs(os.path.join(keep, "train", "seed2", "bc-oh"))  # kept in git
         open(os.path.join(keep, "train", "seed2", "bc-oh", "checkpoint.json"), "w").close()
         os.makedirs(os.path.join(keep, "train", "seed1", "bc-oh.record"))  # weights not kept
@@ -563,7 +566,7 @@ class VerdictsAblationsTest(VerdictsStandIn):
                   "w") as f:
             f.write("{}")
         env = dict(os.environ, CD=self.cd, OUT=out, KEEP=keep, CONFIGS=self.configs,
-                   METHODS="bc-oh", SEEDS_MAIN="0 1 2", SEEDS_OTHERS="0",
+                   METHODS="bc-oh", SEEDS_MAIN="0 1 2 3", SEEDS_OTHERS="0",
                    ABLATION_LABELS="residual-b2")
         r = subprocess.run([os.path.join(SOURCE, "scripts", "verdicts.sh"), "secondary"],
                            cwd=SOURCE, env=env, capture_output=True, text=True, timeout=120)
@@ -574,15 +577,18 @@ class VerdictsAblationsTest(VerdictsStandIn):
                                  ("seed2", "b-stopgo")])
         for run, folder in (("train/seed1/bc-oh", "eval/bc-oh/seed1/a-stopgo"),
                             ("train/seed1/bc-oh", "eval/bc-oh/seed1/b-stopgo"),
+                            ("train/seed3/bc-oh", "eval/bc-oh/seed3/a-stopgo"),
                             ("train/seed0/residual-b2", "eval/residual-b2/seed0/a-dense")):
             self.assertIn("%s/%s: no weights here (not trained yet, or not kept), %s/%s skipped"
                           % (out, run, out, folder), r.stderr)
-        self.assertIn("secondary: 3 evaluation(s) skipped for want of weights", r.stderr)
+        self.assertIn("secondary: 5 evaluation(s) skipped for want of weights", r.stderr)
 
     def test_the_device_check_evaluates_the_cuda_runs_under_their_own_label(self):
         out = os.path.join(self.dir, "out")
         os.makedirs(os.path.join(out, "cuda", "seed0", "residual"))
         open(os.path.join(out, "cuda", "seed0", "residual", "best.pt"), "w").close()
+        # imported by scripts/gpu_import.py: its record kept, the weights (over 5 MB) here
+        os.makedirs(os.path.join(self.dir, "keep", "cuda", "seed0", "residual.record"))
         env = dict(os.environ, CD=self.cd, OUT=out, KEEP=os.path.join(self.dir, "keep"),
                    CONFIGS=self.configs, TRAIN="cuda", METHODS="residual", SEEDS_MAIN="0 1")
         r = subprocess.run([os.path.join(SOURCE, "scripts", "verdicts.sh"), "eval"], cwd=SOURCE,
