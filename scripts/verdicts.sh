@@ -32,6 +32,15 @@
 #                                # -> results/verdicts/primary.md; tables 11 and B.5, the stall
 #                                # rates -> results/verdicts/secondary.md
 #
+# MODE=free runs section 2's free-mode endpoint (ego.lateral = "free": the agents steer):
+# residual, bc-oh, keyframe and dagger at seeds 0-4, each with its chosen config of route mode's
+# tuning (configs/verdicts/METHOD.toml, section 6: no tuning of its own) and the free keys
+# (ego.lateral = "free", collect.augment.fraction = AUGMENT, default 0.3, as
+# scripts/steering_paper.sh), written to runs/verdicts-free/configs/; its own data folders
+# (collect seeds 100 and 200), runs and six conditions under runs/verdicts-free and
+# results/verdicts-free (`MODE=free scripts/verdicts.sh data train eval report`). tune and
+# choose are route mode's; no ablation runs in free mode. With VIEW=camera: runs/camera-free.
+#
 # VIEW=camera runs the same steps as docs/camera.md's plan for the front camera: the base config
 # is configs/residual_paper.toml with sense.view = "camera"; the methods bc-so, bc-oh, keyframe
 # and residual (dagger where compute allows: METHODS) at seeds 0-2; the conditions are table 7's
@@ -44,6 +53,7 @@
 # before any of them runs. Knobs:
 #   CD       the causaldrive binary   (default: build/causaldrive)
 #   VIEW     bev (default: docs/protocol.md's runs) or camera (docs/camera.md's plan)
+#   MODE     route (default: the primary endpoint's) or free (the free-mode endpoint, above)
 #   METHODS  the methods tuned, trained, evaluated (default: the seven of section 3; camera:
 #            bc-so bc-oh keyframe residual)
 #   SEEDS_MAIN, SEEDS_OTHERS  section 7's seeds (default: "0 1 ... 9" for residual, bc-oh,
@@ -93,6 +103,18 @@ verdicts-town-b-regular|clean|b-regular verdicts-town-b-dense|clean|b-dense"
     ;;
   *) echo "error: unknown VIEW '$VIEW' (bev or camera)" >&2; exit 2 ;;
 esac
+MODE=${MODE:-route}
+case $MODE in
+  route) FREE_KEYS="" ;;
+  free)  # section 2's free-mode endpoint: the chosen configs of route mode with the free keys
+    FREE_KEYS="ego.lateral=free collect.augment.fraction=${AUGMENT:-0.3}"
+    view_configs=configs/$view_name
+    view_name=$view_name-free view_title="the free-mode ${view_title#the }"
+    [[ $VIEW == bev ]] && view_methods="residual bc-oh keyframe dagger" view_main="0 1 2 3 4"
+    view_ablations=""
+    ;;
+  *) echo "error: unknown MODE '$MODE' (route or free)" >&2; exit 2 ;;
+esac
 METHODS=${METHODS:-$view_methods}
 VARIANTS="old signed hold-balanced signed-hold-balanced"
 OUT=${OUT:-runs/$view_name}
@@ -105,7 +127,7 @@ TRAIN=${TRAIN:-train}  # the runs evaluated: section 7's (train) or the device c
 KEEP=${KEEP:-results/$view_name}
 source scripts/paper_lib.sh  # run_steps, kept_train, kept_eval
 VAL=${VAL:-$view_val/eval}                  # recipe_validation.sh's kept evaluations
-CONFIGS=${CONFIGS:-configs/$view_name}      # choose's configs
+CONFIGS=${CONFIGS:-${view_configs:-configs/$view_name}}  # choose's configs (free: route's)
 RESULTS=${RESULTS:-results/$view_name}      # choose's tuning.md
 
 base_config() {  # -> BASE with BASE_KEYS: BASE itself, or $OUT/configs/base.toml
@@ -199,10 +221,14 @@ seeds_of() {  # METHOD -> its training seeds (section 7)
   esac
 }
 
-config_of() {  # METHOD -> its chosen config (section 6), or a one-line stop
-  local f=$CONFIGS/$1.toml
+config_of() {  # METHOD -> its chosen config (section 6; MODE=free: with the free keys, in
+  local f=$CONFIGS/$1.toml  # $OUT/configs), or a one-line stop
   [[ -f $f ]] || { echo "error: $f missing: run 'scripts/verdicts.sh tune choose' first" >&2; return 1; }
-  echo "$f"
+  [[ -n $FREE_KEYS ]] || { echo "$f"; return; }
+  mkdir -p "$OUT/configs"
+  # shellcheck disable=SC2086
+  scripts/config_variant.py "$f" "$OUT/configs/$1.toml" $FREE_KEYS >&2 || return
+  echo "$OUT/configs/$1.toml"
 }
 
 data_of() {  # METHOD SEED -> its data folder: D1 (even seed) or D2, for its collect settings
@@ -379,8 +405,8 @@ gpu_list_step() {
       [[ $m == residual ]] && continue
       gpu_entry "train/seed$s/$m" "$m" "$(config_of "$m")" "$m" "$s" || return
     done
-    # The device check (protocol section 11): residual on CUDA at section 7's seeds.
-    if [[ " $methods " == *" residual "* && " $(seeds_of residual) " == *" $s "* ]]; then
+    # The device check (protocol section 11): residual on CUDA at section 7's seeds (route mode).
+    if [[ $MODE == route && " $methods " == *" residual "* && " $(seeds_of residual) " == *" $s "* ]]; then
       gpu_entry "cuda/seed$s/residual" residual "$(config_of residual)" residual "$s" || return
     fi
     [[ " $SEEDS_OTHERS " == *" $s "* ]] || continue
@@ -446,13 +472,14 @@ report_step() {
     echo
     "$CD" report "${dirs[@]}" --metrics outcomes
     for m in bc-oh keyframe dagger bc-so hd fca; do
+      [[ " ${dirs[*]} " == *"/eval/$m/"* ]] || continue  # not evaluated (yet)
       echo
       "$CD" report "${dirs[@]}" --metrics outcomes --compare residual "$m" \
         | sed -n '/^## .* vs /,$p' || true
     done
     # The device check (section 11): residual trained on CUDA against the CUDA-trained
     # methods, and against residual trained on the CPU.
-    if printf '%s\n' "${dirs[@]}" | grep -q '/eval/residual-cuda/'; then
+    if [[ " ${dirs[*]} " == *"/eval/residual-cuda/"* ]]; then  # (not grep -q: pipefail and SIGPIPE)
       for m in bc-oh keyframe residual; do
         echo
         "$CD" report "${dirs[@]}" --metrics outcomes --compare residual-cuda "$m" \
@@ -475,6 +502,7 @@ secondary_report() {  # tables 11 and B.5 on town-a dense, the stall rates -> se
   {
     echo "# ${view_title^}' secondary endpoints (docs/protocol.md section 2), from the kept evaluations"
     while IFS='|' read -r label base _; do
+      [[ " ${dense[*]} " == *"/eval/$label/"* ]] || continue  # not evaluated (yet)
       echo
       "$CD" report "${dense[@]}" --metrics outcomes --compare "$label" "$base" </dev/null \
         | sed -n '/^## .* vs /,$p' || true
@@ -490,8 +518,12 @@ secondary_report() {  # tables 11 and B.5 on town-a dense, the stall rates -> se
 
 run_step() {
   case $1 in
-    tune) tune ;;
-    choose) choose ;;
+    tune | choose)
+      if [[ $MODE == free ]]; then
+        echo "error: MODE=free takes route mode's chosen configs ($CONFIGS): run $1 without MODE" >&2
+        return 1
+      fi
+      $1 ;;
     data) data_step ;;
     train) train_step ;;
     eval) eval_step ;;

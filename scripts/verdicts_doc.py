@@ -116,10 +116,11 @@ def paper_success(method):
     return sum(100 - c - t for c, t in PAPER_FAILURES[method]) / len(PAPER_FAILURES[method])
 
 
-def evaluated_seeds(method):
-    """The seeds of METHOD with a kept evaluation in every condition of section 2: only whole
-    seeds enter a comparison, since report pairs a label's k-th run across conditions."""
-    root = os.path.join(ROOT, "results", "verdicts", "eval", method)
+def evaluated_seeds(method, results="verdicts"):
+    """The seeds of METHOD with a kept evaluation in every condition of section 2 (under
+    results/RESULTS: verdicts, or verdicts-free for the free-mode endpoint): only whole seeds
+    enter a comparison, since report pairs a label's k-th run across conditions."""
+    root = os.path.join(ROOT, "results", results, "eval", method)
     seeds = []
     for d in sorted(glob.glob(os.path.join(root, "seed*")), key=lambda d: int(d[len(root) + 5:])):
         if all(os.path.exists(os.path.join(d, c, "results.json")) for c in CONDITIONS):
@@ -433,6 +434,34 @@ def primary_rows():
     return out
 
 
+FREE_PLANNED = 5  # section 2: the free-mode endpoint at 5 seeds each where compute allows
+FREE_CMD = "MODE=free scripts/verdicts.sh data train eval report"
+
+
+def free_rows():
+    """Section 2's free-mode endpoint (secondary; `MODE=free scripts/verdicts.sh`): residual
+    against bc-oh, keyframe and dagger on the mean success over the six conditions with the
+    agents steering, on the seeds evaluated in all six; interim until 5 seeds of each."""
+    out = []
+    res = evaluated_seeds("residual", "verdicts-free")
+    for m in ("bc-oh", "keyframe", "dagger"):
+        claim = "Seed 001 tables 7-9 in free mode (the agents steer; secondary): residual beats %s" % m
+        paper = "mean success %.1f against %.1f %%" % (paper_success("residual"), paper_success(m))
+        other = evaluated_seeds(m, "verdicts-free")
+        if not res or not other:
+            out.append([claim, paper, "pending: the free-mode runs are not evaluated yet",
+                        "not yet", "`%s`" % FREE_CMD])
+            continue
+        row = compare_row(claim, paper, seed_dirs(res + other), "residual", m, "success_rate",
+                          True, FREE_CMD)
+        row[2] += " (%d x %d seeds)" % (len(res), len(other))
+        if min(len(res), len(other)) < FREE_PLANNED:
+            row[3] = "not yet (interim: %d and %d of %d planned seeds evaluated)" % (
+                len(res), len(other), FREE_PLANNED)
+        out.append(row)
+    return out
+
+
 def primary_endpoint(seed_dir):
     """One run's primary endpoint (protocol section 2): its mean success rate in % over the six
     conditions, from report --metrics outcomes of its kept evaluations."""
@@ -519,17 +548,18 @@ def rows():
     out += primary_rows()
     out += device_rows()
     out.append(power_row())
+    out += free_rows()
     out.append(table10_row())
     out += ablation_rows()
     out.append(probe_row())
     return out
 
 
-def run_records(kind):
+def run_records(kind, results="verdicts"):
     """(seed, method, folder, checkpoint.json) of each run record under
-    results/verdicts/KIND/seedN/: METHOD/, or METHOD.record/ for a run whose weights are over
+    results/RESULTS/KIND/seedN/: METHOD/, or METHOD.record/ for a run whose weights are over
     5 MB (its record kept, its weights not)."""
-    for path in glob.glob(os.path.join(ROOT, "results", "verdicts", kind, "seed*", "*",
+    for path in glob.glob(os.path.join(ROOT, "results", results, kind, "seed*", "*",
                                        "checkpoint.json")):
         folder = os.path.dirname(path)
         with open(path) as f:
@@ -601,6 +631,22 @@ def runs_section():
                   "validation loss | why |", "|---|---:|---|---|---|---|---|---:|---|"]
         lines += [run_line(method, seed, cols) + " %s |" % why
                   for _, seed, method, cols, why in sorted(old)]
+    free = sorted((methods.index(method) if method in methods else 99, seed, method,
+                   run_columns(ck, seed)) for seed, method, _, ck in run_records("train",
+                                                                                 "verdicts-free"))
+    head = ("- **Free mode** (section 2's free-mode endpoint, `%s`; results in "
+            "`results/verdicts-free/`)" % FREE_CMD)
+    if free:
+        lines += ["", head + ", the kept runs:", "",
+                  "| method | seed | data | device | CPU | libtorch | best epoch of | validation loss |",
+                  "|---|---:|---|---|---|---|---|---:|"]
+        lines += [run_line(method, seed, cols) for _, seed, method, cols in free]
+        done = ["%s %d" % (m, len(evaluated_seeds(m, "verdicts-free"))) for m in methods
+                if evaluated_seeds(m, "verdicts-free")]
+        lines += ["", "Seeds evaluated in all six conditions in free mode: %s." % (
+            ", ".join(done) if done else "none yet")]
+    else:
+        lines += ["", head + ": no run trained yet."]
     evaluated = ["%s %d" % (m, len(evaluated_seeds(m))) for m in methods if evaluated_seeds(m)]
     lines += ["", "The CPU is the model the run trained on and ATen's kernels there (`runtime.cpu` "
               "and `cpu_kernels` of its checkpoint.json; "
@@ -638,8 +684,9 @@ def page():
              "3 seeds; error = collision + inertia, the paper's own error needs per-episode "
              "inertia its records predate). Table 13's rows judge the kept MuJoCo-Image runs (3 "
              "seeds x 10 episodes per env; IQM return with a two-level bootstrap, which with 3 "
-             "seeds understates the spread between seeds). Seed 001's driving rows wait for the "
-             "protocol's runs.", "",
+             "seeds understates the spread between seeds). Seed 001's driving rows judge the "
+             "protocol's runs, and stay interim (\"not yet\") until every planned seed of both "
+             "methods is evaluated.", "",
              "| claim | paper | ours | verdict | command |", "|---|---|---|---|---|"]
     for r in rows():
         lines.append("| " + " | ".join(r) + " |")

@@ -63,10 +63,11 @@ CONDITIONS = ["a-regular", "a-dense", "a-regular-shifted", "a-dense-shifted", "b
               "b-dense"]
 
 
-def copy_kept_run(tmp, label, seed, condition, src_method=None, src_seed=None):
+def copy_kept_run(tmp, label, seed, condition, src_method=None, src_seed=None,
+                  results="verdicts"):
     """A checkout of its own under tmp: the kept 25-task run of SRC_METHOD (default LABEL) at
     SRC_SEED (default SEED) in CONDITION (residual_paper's town-CONDITION), written as LABEL's
-    verdicts evaluation of SEED there (relabelled); returns its episodes."""
+    evaluation of SEED under results/RESULTS there (relabelled); returns its episodes."""
     import json
     src = os.path.join(ROOT, "results", "residual_paper", "eval", src_method or label,
                        "seed%d" % (seed if src_seed is None else src_seed), "town-" + condition,
@@ -74,7 +75,7 @@ def copy_kept_run(tmp, label, seed, condition, src_method=None, src_seed=None):
     with open(src) as f:
         res = json.load(f)
     res["label"] = label
-    dst = os.path.join(tmp, "results", "verdicts", "eval", label, "seed%d" % seed, condition)
+    dst = os.path.join(tmp, "results", results, "eval", label, "seed%d" % seed, condition)
     os.makedirs(dst)
     with open(os.path.join(dst, "results.json"), "w") as f:
         json.dump(res, f)
@@ -136,6 +137,34 @@ class Docs(unittest.TestCase):
             b = sum(success["bc-oh", s, c] for s in (0, 1) for c in CONDITIONS) / 12
             self.assertIn("over 6 conditions: %+.1f [" % (100 * (a - b)), row[2])
             self.assertIn("pending", rows[1][2])  # keyframe: nothing evaluated
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+    def test_free_mode_rows_read_their_own_results_and_stay_interim_until_five_seeds(self):
+        # A checkout of its own: residual seeds 0-2 and bc-oh seeds 0-1 "evaluated" in free
+        # mode (results/verdicts-free) by copies of the kept 25-task runs; route mode empty.
+        import shutil
+        import tempfile
+        tmp = tempfile.mkdtemp(prefix="cd_free_")
+        try:
+            success = {}
+            for m, seeds in (("residual", (0, 1, 2)), ("bc-oh", (0, 1))):
+                for s in seeds:
+                    for c in CONDITIONS:
+                        success[m, s, c] = success_share(
+                            copy_kept_run(tmp, m, s, c, results="verdicts-free"))
+            doc = load_verdicts_doc(tmp)
+            rows = doc.free_rows()
+            self.assertIn("in free mode", rows[0][0])
+            self.assertIn("residual beats bc-oh", rows[0][0])
+            self.assertIn("(3 x 2 seeds)", rows[0][2])
+            self.assertEqual(rows[0][3], "not yet (interim: 3 and 2 of 5 planned seeds evaluated)")
+            a = sum(success["residual", s, c] for s in (0, 1, 2) for c in CONDITIONS) / 18
+            b = sum(success["bc-oh", s, c] for s in (0, 1) for c in CONDITIONS) / 12
+            self.assertIn("over 6 conditions: %+.1f [" % (100 * (a - b)), rows[0][2])
+            self.assertEqual([r[2] for r in rows[1:]], ["pending: the free-mode runs are not "
+                                                        "evaluated yet"] * 2)  # keyframe, dagger
+            self.assertIn("pending", doc.primary_rows()[0][2])  # route mode's rows: untouched
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 

@@ -762,6 +762,93 @@ class VerdictsCameraTest(VerdictsStandIn):
         self.assertEqual(r.stderr.strip(), "error: unknown VIEW 'lidar' (bev or camera)")
 
 
+class VerdictsFreeModeTest(VerdictsStandIn):
+    """scripts/verdicts.sh with MODE=free (protocol section 2's free-mode endpoint), the
+    stand-in causaldrive recording its arguments: each method's chosen config of route mode
+    with the free keys, its own data folders, seeds 0-4 on the six conditions; no tuning and
+    no device check of its own; the report compares residual with the methods evaluated."""
+
+    def free(self, *steps, **env):
+        env = dict(dict(os.environ, CD=self.cd, MODE="free", OUT=os.path.join(self.dir, "out"),
+                        KEEP=os.path.join(self.dir, "keep"), CONFIGS=self.configs,
+                        METHODS="residual bc-oh keyframe"), **env)
+        return subprocess.run([os.path.join(SOURCE, "scripts", "verdicts.sh"), *steps],
+                              cwd=SOURCE, env=env, capture_output=True, text=True, timeout=120)
+
+    def test_runs_use_the_chosen_configs_with_the_free_keys_at_five_seeds(self):
+        import tomllib
+        r = self.free("data", "train", "eval")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        out = os.path.join(self.dir, "out")
+        calls = self.calls()
+        collects = [c for c in calls if c[0] == "collect"]
+        trains = [c for c in calls if c[0] == "train"]
+        evals = [c for c in calls if c[0] == "eval"]
+        self.assertEqual({(c[c.index("--seed") + 1], c[c.index("--out") + 1]) for c in collects},
+                         {("100", os.path.join(out, "data", h, "D1")) for h in ("hold1.0", "hold0.0")} |
+                         {("200", os.path.join(out, "data", h, "D2")) for h in ("hold1.0", "hold0.0")})
+        self.assertEqual(sorted((c[c.index("--method") + 1], c[c.index("--seed") + 1]) for c in trains),
+                         sorted((m, str(s)) for m in ("residual", "bc-oh", "keyframe")
+                                for s in range(5)))
+        self.assertEqual(len(evals), 3 * 5 * 6)
+        self.assertEqual({c[c.index("--out") + 1].split("/")[-1] for c in evals},
+                         {"a-regular", "a-dense", "a-regular-shifted", "a-dense-shifted",
+                          "b-regular", "b-dense"})
+        for c in collects + trains + evals:
+            config = c[c.index("--config") + 1]
+            self.assertEqual(os.path.dirname(config), os.path.join(out, "configs"))
+            with open(config, "rb") as f:
+                got = tomllib.load(f)
+            self.assertEqual((got["ego"]["lateral"], got["collect"]["augment"]["fraction"]),
+                             ("free", 0.3))
+            method = os.path.basename(config)[:-len(".toml")]
+            self.assertEqual(got["train"]["epochs"], len(method))  # the chosen config's keys
+        for c in trains:  # each seed on its folder: D1 for even seeds, D2 for odd (section 4)
+            seed, method = int(c[c.index("--seed") + 1]), c[c.index("--method") + 1]
+            self.assertEqual(c[c.index("--data") + 1], os.path.join(
+                out, "data", "hold0.0" if method == "keyframe" else "hold1.0",
+                "D1" if seed % 2 == 0 else "D2"))
+
+    def test_no_tuning_no_device_check_and_the_report_of_what_is_evaluated(self):
+        import tomllib
+        r = self.free("tune", "data")
+        self.assertNotEqual(r.returncode, 0)
+        self.assertEqual(r.stderr.strip(), "error: MODE=free takes route mode's chosen configs "
+                         "(%s): run tune without MODE" % self.configs)
+        self.assertFalse(os.path.exists(self.log))  # nothing ran
+        out, gpu = os.path.join(self.dir, "out"), os.path.join(self.dir, "gpu")
+        for d in ("D1", "D2"):
+            os.makedirs(os.path.join(out, "data", "hold1.0", d))
+            with open(os.path.join(out, "data", "hold1.0", d, "collect.json"), "w") as f:
+                f.write("{}")
+        r = self.free("gpu-list", METHODS="residual bc-oh", SEEDS_MAIN="0", GPU_DIR=gpu,
+                      AUGMENT="0.5")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(gpu, "runs.txt")) as f:
+            lines = [line.split() for line in f if not line.startswith("#")]
+        self.assertEqual([n for n, *_ in lines], ["train/seed0/bc-oh"])  # no cuda/, no ablation
+        with open(os.path.join(gpu, "bc-oh.toml"), "rb") as f:
+            got = tomllib.load(f)
+        self.assertEqual((got["ego"]["lateral"], got["collect"]["augment"]["fraction"],
+                          got["train"]["cuda_deterministic"]), ("free", 0.5, True))
+        keep = os.path.join(self.dir, "keep")
+        for d in ("residual/seed0/a-regular", "bc-oh/seed0/a-regular"):
+            os.makedirs(os.path.join(keep, "eval", d))
+            with open(os.path.join(keep, "eval", d, "results.json"), "w") as f:
+                f.write("{}")
+        r = self.free("report")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        compared = [c[c.index("--compare") + 2] for c in self.calls()
+                    if c[0] == "report" and "--compare" in c]
+        self.assertEqual(compared, ["bc-oh"])  # keyframe, dagger, ...: not evaluated
+        with open(os.path.join(keep, "primary.md")) as f:
+            self.assertEqual(f.readline().strip(), "# The free-mode verdicts' primary endpoint "
+                             "(docs/protocol.md section 2), from the kept evaluations")
+        r = self.free("report", MODE="sideways")
+        self.assertEqual((r.returncode, r.stderr.strip()),
+                         (2, "error: unknown MODE 'sideways' (route or free)"))
+
+
 class GpuImportTest(TempDirCase):
     """scripts/gpu_import.py: a lent machine's packs land where kept_train would have left the
     runs (weights up to the limit kept, larger ones as a record with the weights in OUT), an
