@@ -570,6 +570,10 @@ def run_records(kind, results="verdicts"):
         yield int(os.path.basename(os.path.dirname(folder))[4:]), method, folder, ck
 
 
+RUNS_HEAD = ["| method | seed | data | device | CPU | libtorch | best epoch of | validation loss |",
+             "|---|---:|---|---|---|---|---|---:|"]  # run_line's columns
+
+
 def run_line(method, seed, cols):
     """A runs table's row: METHOD, SEED and run_columns' COLS."""
     return "| %s | %d | %s | %s | %s | %s | %s | %.5f |" % ((method, seed) + cols)
@@ -602,9 +606,8 @@ def runs_section():
              "- **Tuning** (section 6, seed 0, validation suites; variants evaluated of four): " +
              ", ".join(tuned) + ". The choices: `results/verdicts/tuning.md` "
              "(`scripts/verdicts.sh choose`).",
-             "- **Training** (section 7; residual-cuda: the device check of section 11), the kept runs:", "",
-             "| method | seed | data | device | CPU | libtorch | best epoch of | validation loss |",
-             "|---|---:|---|---|---|---|---|---:|"]
+             "- **Training** (section 7; residual-cuda: the device check of section 11), the kept runs:",
+             ""] + RUNS_HEAD
     runs = []
     for kind in ("train", "cuda"):
         for seed, method, _, ck in run_records(kind):
@@ -637,12 +640,10 @@ def runs_section():
     head = ("- **Free mode** (section 2's free-mode endpoint, `%s`; results in "
             "`results/verdicts-free/`)" % FREE_CMD)
     if free:
-        lines += ["", head + ", the kept runs:", "",
-                  "| method | seed | data | device | CPU | libtorch | best epoch of | validation loss |",
-                  "|---|---:|---|---|---|---|---|---:|"]
+        lines += ["", head + ", the kept runs:", ""] + RUNS_HEAD
         lines += [run_line(method, seed, cols) for _, seed, method, cols in free]
-        done = ["%s %d" % (m, len(evaluated_seeds(m, "verdicts-free"))) for m in methods
-                if evaluated_seeds(m, "verdicts-free")]
+        counts = ((m, len(evaluated_seeds(m, "verdicts-free"))) for m in methods)
+        done = ["%s %d" % (m, n) for m, n in counts if n]
         lines += ["", "Seeds evaluated in all six conditions in free mode: %s." % (
             ", ".join(done) if done else "none yet")]
     else:
