@@ -78,11 +78,16 @@ def iqm_row(claim, paper, envs, a, b, command):
                                                                     "not resolved at this power")
         words.setdefault(word, []).append(env)
     ours = "%s - %s, IQM return: %s" % (a, b, "; ".join(parts))
-    order = ["confirmed", "refuted", "not resolved at this power", "not testable here"]
-    verdict = "; ".join("%s on %s" % (w, ", ".join(words[w])) for w in order if w in words)
+    return [claim, paper, ours, verdict_by_part(words), "`%s`" % command]
+
+
+def verdict_by_part(words):
+    """{verdict: [parts]} -> "confirmed on x; not resolved at this power on y", or
+    "confirmed" when every part is."""
     if set(words) == {"confirmed"}:
-        verdict = "confirmed"
-    return [claim, paper, ours, verdict, "`%s`" % command]
+        return "confirmed"
+    order = ["confirmed", "refuted", "not resolved at this power", "not testable here"]
+    return "; ".join("%s on %s" % (w, ", ".join(words[w])) for w in order if w in words)
 
 
 def dirs_of(*patterns):
@@ -434,6 +439,49 @@ def primary_rows():
     return out
 
 
+# Tables 7, 8 and 9 each: the CONDITIONS (and PAPER_FAILURES) index of their regular and
+# dense conditions.
+TABLES = [("7", "the training town", 0, 1),
+          ("8", "new weather; here the shifted sensor, the BEV's stand-in", 2, 3),
+          ("9", "the new town", 4, 5)]
+
+
+def table_rows():
+    """Tables 7, 8 and 9 one by one: residual - bc-oh (the primary pair) in each of the
+    table's two conditions, a secondary comparison per condition (protocol section 2), on the
+    seeds of the primary row; interim as it is. Every method's per-condition comparisons are
+    in results/verdicts/primary.md."""
+    res, other = evaluated_seeds("residual"), evaluated_seeds("bc-oh")
+    out = []
+    for table, what, *idx in TABLES:
+        claim = ("Seed 001 table %s (%s), per condition (secondary): residual beats bc-oh"
+                 % (table, what))
+        paper = "; ".join("%s %.1f against %.1f %%" % (
+            word, *(100 - sum(PAPER_FAILURES[m][i]) for m in ("residual", "bc-oh")))
+            for word, i in zip(("regular", "dense"), idx))
+        cmd = "`scripts/verdicts.sh report`"
+        if not res or not other:
+            out.append([claim, paper, "pending: the protocol's runs (docs/protocol.md) are not "
+                        "evaluated yet", "not yet", cmd])
+            continue
+        parts, words = [], {}
+        for word, i in zip(("regular", "dense"), idx):
+            r = compare_over([os.path.relpath(os.path.join(d, CONDITIONS[i]), ROOT)
+                              for d in res + other], "residual", "bc-oh", "success_rate")[0]
+            parts.append("%s %s [%s, %s]" % (word, pts(r["difference"]), pts(r["lo"]),
+                                             pts(r["hi"])))
+            words.setdefault({"A better": "confirmed", "B better": "refuted"}.get(
+                r["verdict"], "not resolved at this power"), []).append(word)
+        ours = "residual - bc-oh, success_rate in points: %s (%d x %d seeds)" % (
+            "; ".join(parts), len(res), len(other))
+        verdict = verdict_by_part(words)
+        if len(res) < planned("residual") or len(other) < planned("bc-oh"):
+            verdict = "not yet (interim: %d of %d and %d of %d planned seeds evaluated)" % (
+                len(res), planned("residual"), len(other), planned("bc-oh"))
+        out.append([claim, paper, ours, verdict, cmd])
+    return out
+
+
 FREE_PLANNED = 5  # section 2: the free-mode endpoint at 5 seeds each where compute allows
 FREE_CMD = "MODE=free scripts/verdicts.sh data train eval report"
 
@@ -546,6 +594,7 @@ def rows():
                 "scripts/mujoco_paper.sh table"),
     ]
     out += primary_rows()
+    out += table_rows()
     out += device_rows()
     out.append(power_row())
     out += free_rows()

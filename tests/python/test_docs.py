@@ -140,6 +140,36 @@ class Docs(unittest.TestCase):
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
+    def test_table_rows_compare_each_tables_two_conditions(self):
+        # A checkout of its own: residual and bc-oh seeds 0-1 "evaluated" in the six conditions
+        # by copies of the kept 25-task runs; each table's row holds residual - bc-oh in its two
+        # conditions, checked by hand, and stays interim below the planned seeds.
+        import shutil
+        import tempfile
+        tmp = tempfile.mkdtemp(prefix="cd_tables_")
+        try:
+            success = {}
+            for m in ("residual", "bc-oh"):
+                for s in (0, 1):
+                    for c in CONDITIONS:
+                        success[m, s, c] = success_share(copy_kept_run(tmp, m, s, c))
+            doc = load_verdicts_doc(tmp)
+            rows = doc.table_rows()
+            self.assertEqual([r[0][:16] for r in rows], ["Seed 001 table 7", "Seed 001 table 8",
+                                                         "Seed 001 table 9"])
+            self.assertIn("regular 78.0 against 67.0 %", rows[0][1])  # 100 - 6.8 - 15.2 ...
+            for row, (reg, dense) in zip(rows, (CONDITIONS[0:2], CONDITIONS[2:4],
+                                                CONDITIONS[4:6])):
+                for word, c in (("regular", reg), ("dense", dense)):
+                    diff = sum(success["residual", s, c] - success["bc-oh", s, c]
+                               for s in (0, 1)) / 2
+                    self.assertIn("%s %+.1f [" % (word, 100 * diff), row[2])
+                self.assertIn("(2 x 2 seeds)", row[2])
+                self.assertEqual(row[3], "not yet (interim: 2 of 10 and 2 of 10 planned seeds "
+                                         "evaluated)")
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
     def test_free_mode_rows_read_their_own_results_and_stay_interim_until_five_seeds(self):
         # A checkout of its own: residual seeds 0-2 and bc-oh seeds 0-1 "evaluated" in free
         # mode (results/verdicts-free) by copies of the kept 25-task runs; route mode empty.
