@@ -638,6 +638,27 @@ def run_columns(ck, seed):
             "%d of %d" % (ck["best_epoch"], ck["epochs_done"]), ck["best_loss"])
 
 
+def compute_line():
+    """The training compute of the kept run records, by device: the sum of their epochs'
+    seconds (checkpoint.json's metrics), per group of runs."""
+    groups = [("section 7", "train", "verdicts"), ("the device check", "cuda", "verdicts"),
+              ("superseded", "superseded", "verdicts"), ("free mode", "train", "verdicts-free")]
+    parts = []
+    for name, kind, results in groups:
+        by_device = {}
+        for _, _, _, ck in run_records(kind, results):
+            t = by_device.setdefault(ck.get("runtime", {}).get("device", "?"), [0.0, 0])
+            t[0] += sum(e["seconds"] for e in ck.get("metrics", []))
+            t[1] += 1
+        if by_device:
+            parts.append("%s: %s" % (name, ", ".join(
+                "%s %.2f h over %d run%s" % (d, t[0] / 3600, t[1], "" if t[1] == 1 else "s")
+                for d, t in sorted(by_device.items()))))
+    return ("- **Compute** (training only, from the kept run records: the sum of their epochs' "
+            "seconds; dagger's records hold its last iteration's epochs; evaluation time is not "
+            "recorded; the tuning runs keep no record): " + ("; ".join(parts) if parts else "no run yet") + ".")
+
+
 def runs_section():
     """Section 10 of the protocol, every run reported: the tuning evaluations kept so far and
     each kept training run of section 7 with its data folder and device."""
@@ -707,6 +728,7 @@ def runs_section():
               "\"Training runs on a lent machine\"). " +
               ("Seeds evaluated in all six conditions of section 2: %s." % ", ".join(evaluated)
                if evaluated else "No section-7 run is evaluated yet.")]
+    lines += ["", compute_line()]
     devices = {}
     for _, _, method, (_, device, *_) in runs:
         if not method.endswith("-cuda"):

@@ -170,6 +170,23 @@ class Docs(unittest.TestCase):
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
+    def test_the_compute_line_sums_the_records_epoch_seconds_by_group_and_device(self):
+        import shutil
+        import tempfile
+        tmp = tempfile.mkdtemp(prefix="cd_compute_")
+        try:
+            doc = load_verdicts_doc(tmp)
+            self.assertIn("): no run yet.", doc.compute_line())
+            write_run_record(tmp, "bc-oh", 0, "cpu", metrics=[{"seconds": 1800}, {"seconds": 900}])
+            write_run_record(tmp, "bc-oh", 1, "cpu", metrics=[{"seconds": 900}])
+            write_run_record(tmp, "keyframe", 0, "cuda", metrics=[{"seconds": 360}])
+            write_run_record(tmp, "residual", 0, "cuda", kind="cuda", metrics=[{"seconds": 36}])
+            line = doc.compute_line()
+            self.assertTrue(line.endswith("section 7: cpu 1.00 h over 2 runs, cuda 0.10 h over 1 "
+                                          "run; the device check: cuda 0.01 h over 1 run."), line)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
     def test_free_mode_rows_read_their_own_results_and_stay_interim_until_five_seeds(self):
         # A checkout of its own: residual seeds 0-2 and bc-oh seeds 0-1 "evaluated" in free
         # mode (results/verdicts-free) by copies of the kept 25-task runs; route mode empty.
