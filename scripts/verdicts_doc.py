@@ -86,7 +86,8 @@ def verdict_by_part(words):
     "confirmed" when every part is."""
     if set(words) == {"confirmed"}:
         return "confirmed"
-    order = ["confirmed", "refuted", "not resolved at this power", "not testable here"]
+    order = ["confirmed", "refuted", "not resolved at this power", "not yet",
+             "not testable here"]
     return "; ".join("%s on %s" % (w, ", ".join(words[w])) for w in order if w in words)
 
 
@@ -409,11 +410,14 @@ def power_row():
     return [claim, "(no paper figure)", ours, word, cmd]
 
 
+BASELINES = ["bc-oh", "keyframe", "dagger", "bc-so", "hd", "fca"]  # section 3, against residual
+
+
 def primary_rows():
     """Tables 7-9, the primary endpoint (protocol section 2): residual against each method
     (residual_vs_row), with the devices named where they differ."""
     out = []
-    for m in ["bc-oh", "keyframe", "dagger", "bc-so", "hd", "fca"]:
+    for m in BASELINES:
         claim = "Seed 001 tables 7-9: residual beats %s (%s)" % (
             m, "primary endpoint" if m == "bc-oh" else "the primary endpoint's mean")
         row, seeds = residual_vs_row(
@@ -479,6 +483,44 @@ def table_rows():
             verdict = "not yet (interim: %d of %d and %d of %d planned seeds evaluated)" % (
                 len(res), planned("residual"), len(other), planned("bc-oh"))
         out.append([claim, paper, ours, verdict, cmd])
+    return out
+
+
+def failure_rows(primary):
+    """Section 2's secondary endpoints copycat_rate and collision_rate: residual's rate against
+    each baseline's over the six conditions (report --compare, lower is better), on the seeds
+    of the primary rows PRIMARY (primary_rows' output, in BASELINES' order); a baseline whose
+    primary row is interim is "not yet" here too."""
+    interim = {m for m, row in zip(BASELINES, primary) if row[3].startswith("not yet")}
+    res = evaluated_seeds("residual")
+    mean_collision = {m: sum(c for c, _ in PAPER_FAILURES[m]) / len(PAPER_FAILURES[m])
+                      for m in ["residual"] + BASELINES}
+    out = []
+    for metric, claim, paper in (
+            ("copycat_rate", "Seed 001 (secondary): residual's copycat rate (stuck + restart "
+             "stall + stopped free) is below each baseline's, over the six conditions",
+             "(the papers' thesis; no copycat rate published)"),
+            ("collision_rate", "Seed 001 (secondary): residual's collision rate is below each "
+             "baseline's, over the six conditions",
+             "mean collision %.1f against %s %%" % (mean_collision["residual"], ", ".join(
+                 "%s %.1f" % (m, mean_collision[m]) for m in BASELINES)))):
+        parts, words = [], {}
+        for m in BASELINES:
+            other = evaluated_seeds(m)
+            if not res or not other:
+                parts.append("%s pending" % m)
+                words.setdefault("not yet", []).append(m)
+                continue
+            over = compare_over(seed_dirs(res + other), "residual", m, metric)[0]
+            parts.append("%s %s [%s, %s] (%d x %d seeds)" % (
+                m, pts(over["difference"]), pts(over["lo"]), pts(over["hi"]), len(res),
+                len(other)))
+            word = "not yet" if m in interim else {"A better": "confirmed",
+                                                   "B better": "refuted"}.get(
+                over["verdict"], "not resolved at this power")
+            words.setdefault(word, []).append(m)
+        ours = "residual - baseline, %s in points: %s" % (metric, "; ".join(parts))
+        out.append([claim, paper, ours, verdict_by_part(words), "`scripts/verdicts.sh report`"])
     return out
 
 
@@ -593,8 +635,10 @@ def rows():
                 "860 / -62 / 372 against 790 / -71 / 294", t13, "residual", "keyframe",
                 "scripts/mujoco_paper.sh table"),
     ]
-    out += primary_rows()
+    primary = primary_rows()
+    out += primary
     out += table_rows()
+    out += failure_rows(primary)
     out += device_rows()
     out.append(power_row())
     out += free_rows()

@@ -170,6 +170,38 @@ class Docs(unittest.TestCase):
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
+    def test_the_failure_rows_compare_copycat_and_collision_rates_lower_better(self):
+        # A checkout of its own: residual and bc-oh seeds 0-1 "evaluated" in the six conditions
+        # by copies of the kept 25-task runs (residual's are dagger's, relabelled: residual's
+        # own predate the taxonomy); the copycat and collision differences by hand (SPEC
+        # section 14: copycat = stuck + restart stall + stopped free), bc-oh interim as its
+        # primary row, every other baseline pending.
+        import shutil
+        import tempfile
+        tmp = tempfile.mkdtemp(prefix="cd_failures_")
+        try:
+            eps = {}
+            for m in ("residual", "bc-oh"):
+                for s in (0, 1):
+                    for c in CONDITIONS:
+                        eps[m, s, c] = copy_kept_run(
+                            tmp, m, s, c, src_method="dagger" if m == "residual" else None)
+            doc = load_verdicts_doc(tmp)
+            rows = doc.failure_rows(doc.primary_rows())
+            for row, classes in zip(rows, ({"stuck", "restart_stall", "stopped_free"},
+                                           {"collision"})):
+                def rate(m):
+                    return sum(sum(e["outcome"] in classes for e in eps[m, s, c]) / 25
+                               for s in (0, 1) for c in CONDITIONS) / 12
+                self.assertIn("bc-oh %+.1f [" % (100 * (rate("residual") - rate("bc-oh"))),
+                              row[2])
+                self.assertIn("keyframe pending", row[2])
+                self.assertEqual(row[3], "not yet on bc-oh, keyframe, dagger, bc-so, hd, fca")
+            self.assertIn("copycat", rows[0][0])
+            self.assertIn("mean collision 23.1 against bc-oh 23.8", rows[1][1])
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
     def test_the_compute_line_sums_the_records_epoch_seconds_by_group_and_device(self):
         import shutil
         import tempfile
