@@ -63,7 +63,12 @@
 #            power row says they are added)
 #   WORKERS  evaluation workers       (default: 2)
 #   TRAIN    the runs `eval` evaluates: train (section 7's, default) or cuda (the device
-#            check's runs of protocol section 11, labelled METHOD-cuda; untrained seeds skipped)
+#            check's runs of protocol section 11, labelled METHOD-cuda; untrained seeds skipped);
+#            retrain: `train` retrains METHODS at SEEDS_RETRAIN into retrain/seedN/METHOD and
+#            `secondary` evaluates those on the stop-and-go suites only, labelled
+#            METHOD-retrain (protocol section 11, session 39: residual's stall rate, whose
+#            section-7 weights are not kept); `eval`, `ablations` and `probe` refuse it
+#   SEEDS_RETRAIN  the seeds of TRAIN=retrain (default: "0 1 2 3 4")
 #   ABLATION_LABELS  the ablations trained and evaluated (default: all four; camera: the two
 #            two-stream ones)
 #   GPU_DIR  gpu-list's folder (default: .gpu/verdicts, which git ignores)
@@ -124,6 +129,11 @@ SEEDS_OTHERS=${SEEDS_OTHERS:-$view_others}
 SEEDS_ADDED=${SEEDS_ADDED:-""}
 WORKERS=${WORKERS:-2}
 TRAIN=${TRAIN:-train}  # the runs evaluated: section 7's (train) or the device check's (cuda)
+case $TRAIN in
+  train | cuda | retrain) ;;
+  *) echo "error: unknown TRAIN '$TRAIN' (train, cuda or retrain)" >&2; exit 2 ;;
+esac
+SEEDS_RETRAIN=${SEEDS_RETRAIN:-"0 1 2 3 4"}
 KEEP=${KEEP:-results/$view_name}
 source scripts/paper_lib.sh  # run_steps, kept_train, kept_eval
 VAL=${VAL:-$view_val/eval}                  # recipe_validation.sh's kept evaluations
@@ -213,7 +223,8 @@ EOF
   cat "$RESULTS/tuning.md"
 }
 
-seeds_of() {  # METHOD -> its training seeds (section 7)
+seeds_of() {  # METHOD -> its training seeds (section 7; TRAIN=retrain: SEEDS_RETRAIN)
+  [[ $TRAIN != retrain ]] || { echo "$SEEDS_RETRAIN"; return; }
   case $1 in
     residual | bc-oh) echo "$SEEDS_MAIN $SEEDS_ADDED" ;;
     keyframe | dagger) echo "$SEEDS_MAIN" ;;
@@ -253,10 +264,14 @@ data_step() {
 
 train_step() {
   local m s config
+  if [[ $TRAIN == cuda ]]; then
+    echo "error: TRAIN=cuda runs train on a lent GPU (scripts/verdicts.sh gpu-list, docs/gpu.md), not here" >&2
+    return 1
+  fi
   for m in $METHODS; do
     config=$(config_of "$m") || return
     for s in $(seeds_of "$m"); do
-      kept_train "$OUT/train/seed$s/$m" --config "$config" --method "$m" \
+      kept_train "$OUT/$TRAIN/seed$s/$m" --config "$config" --method "$m" \
         --data "$(data_of "$m" "$s")" --seed "$s" || return
     done
   done
@@ -290,6 +305,7 @@ ablation_config() {  # LABEL -> $OUT/configs/LABEL.toml: the base method's confi
 
 ablations_step() {
   local label base config s
+  only_section7 ablations || return
   for label in $ABLATION_LABELS; do
     base=$(ablation_base "$label") || return
     config=$(ablation_config "$label") || return
@@ -298,6 +314,16 @@ ablations_step() {
         --data "$(data_of "$base" "$s")" --seed "$s" || return
     done
   done
+}
+
+run_label() {  # METHOD -> the label of its TRAIN runs: METHOD, or METHOD-cuda, METHOD-retrain
+  if [[ $TRAIN == train ]]; then echo "$1"; else echo "$1-$TRAIN"; fi
+}
+
+only_section7() {  # STEP: a one-line stop unless TRAIN is train (or cuda, STEP eval)
+  [[ $TRAIN == train || ( $TRAIN == cuda && $1 == eval ) ]] && return 0
+  echo "error: TRAIN=$TRAIN: $1 is not run for these runs (protocol section 11)" >&2
+  return 1
 }
 
 has_weights() {  # RUN: a finished run whose weights are here: kept in git, or kept as a
@@ -323,8 +349,9 @@ secondary_eval() {
 # weights (over 5 MB: residual's) were not kept and are not on this machine, is left for a
 # later call. A kept evaluation is never run again, weights or none.
 secondary_step() {
-  local label config s m suite skipped=0
-  for label in $ABLATION_LABELS; do
+  local label config s m suite skipped=0 ablations=$ABLATION_LABELS
+  [[ $TRAIN == train ]] || ablations=""  # retrain (cuda): their stop-and-go runs alone
+  for label in $ablations; do
     config=$(ablation_config "$label") || return
     for s in $SEEDS_OTHERS; do
       secondary_eval "$OUT/train/seed$s/$label" "$OUT/eval/$label/seed$s/a-dense" \
@@ -335,8 +362,8 @@ secondary_step() {
     config=$(config_of "$m") || return
     for s in $(seeds_of "$m"); do
       for suite in town-a-stopgo town-b-stopgo; do
-        secondary_eval "$OUT/train/seed$s/$m" "$OUT/eval/$m/seed$s/${suite#town-}" \
-          --config "$config" --agent "$m" --label "$m" --suite "$suite" || return
+        secondary_eval "$OUT/$TRAIN/seed$s/$m" "$OUT/eval/$(run_label "$m")/seed$s/${suite#town-}" \
+          --config "$config" --agent "$m" --label "$(run_label "$m")" --suite "$suite" || return
       done
     done
   done
@@ -345,6 +372,7 @@ secondary_step() {
 
 probe_step() {  # the probe's row (protocol section 11): each trained run of a history method
   local m s run
+  only_section7 probe || return
   for m in $METHODS; do
     [[ $m == bc-so ]] && continue  # no history to probe
     for s in $(seeds_of "$m"); do
@@ -380,6 +408,7 @@ gpu_entry() {  # NAME METHOD CONFIG BASE SEED: one line of GPU_DIR/runs.txt.tmp,
 
 gpu_list_step() {
   local s m label methods=""
+  [[ $TRAIN != retrain ]] || { echo "error: TRAIN=retrain: its runs train on this machine's CPU (protocol section 11, session 39), not on a lent GPU" >&2; return 1; }
   if [[ $VIEW != bev ]]; then
     echo "error: gpu-list lists the BEV's runs only: a camera data folder (~300 MB) does not fit a lent machine's 64 MiB carry" >&2
     return 1
@@ -427,6 +456,7 @@ condition_names() {  # the six folder names, space-separated
 eval_dirs=()
 eval_step() {
   local m s config cfg held_out c suite sensor name run label
+  only_section7 eval || return
   eval_dirs=()
   for m in $METHODS; do
     config=$(config_of "$m") || return
@@ -436,8 +466,7 @@ eval_step() {
       scripts/config_variant.py "$config" "$held_out" sense.camera.weather=held-out >&2 || return
     fi
     # TRAIN=cuda: the device check's runs (section 11), labelled METHOD-cuda.
-    label=$m
-    [[ $TRAIN == train ]] || label=$m-$TRAIN
+    label=$(run_label "$m")
     for s in $(seeds_of "$m"); do
       run=$OUT/$TRAIN/seed$s/$m
       if [[ $TRAIN != train ]] && ! has_weights "$run"; then
@@ -510,6 +539,10 @@ secondary_report() {  # tables 11 and B.5 on town-a dense, the stall rates -> se
     if [[ ${#stopgo[@]} -gt 0 ]]; then
       echo
       "$CD" report "${stopgo[@]}" --metrics stopgo
+      if [[ " ${stopgo[*]} " == *"-retrain/"* ]]; then
+        echo
+        echo "A label ending in -retrain is that method retrained (TRAIN=retrain; protocol section 11, session 39): the recipe, data folder and seed of its section-7 run, other weights, evaluated on these suites only."
+      fi
     fi
   } > "$f.tmp"
   mv "$f.tmp" "$f"

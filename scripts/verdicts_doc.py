@@ -146,15 +146,69 @@ def device_of(method, seed_dir):
     return None
 
 
+def welch(a, b):
+    """mean(A) - mean(B), the half-width of Welch's 95% interval (scipy), and both means."""
+    try:
+        from scipy import stats
+    except ImportError:
+        raise SystemExit("verdicts_doc.py: Welch's interval needs scipy (Debian: python3-scipy, "
+                         "which /usr/bin/python3 has with the project's setup)")
+    ma, mb = sum(a) / len(a), sum(b) / len(b)
+    va = sum((x - ma) ** 2 for x in a) / (len(a) - 1) / len(a)
+    vb = sum((x - mb) ** 2 for x in b) / (len(b) - 1) / len(b)
+    se = (va + vb) ** 0.5
+    df = (va + vb) ** 2 / (va ** 2 / (len(a) - 1) + vb ** 2 / (len(b) - 1)) if se > 0 else 1
+    return ma - mb, stats.t.ppf(0.975, df) * se, ma, mb
+
+
+RETRAINS = 5  # protocol section 11 (session 39): residual retrained at seeds 0-4
+
+
+def stall_row():
+    """Section 2's stop-and-go stall rate (protocol section 11, session 39): residual's
+    retrains (residual-retrain: other weights of the same recipe) against bc-oh's section-7
+    runs, per suite, the mean of the per-seed stall_rate with Welch's 95% interval; interim
+    until the five retrains are in."""
+    claim = ("Seed 001 (secondary): residual stalls less than bc-oh at stop-and-go events "
+             "(stall rate per event)")
+    cmd = "`TRAIN=retrain METHODS=residual scripts/verdicts.sh train secondary`"
+    rates = {}
+    for m in ("residual-retrain", "bc-oh"):
+        for suite in ("a-stopgo", "b-stopgo"):
+            for path in glob.glob(os.path.join(ROOT, "results", "verdicts", "eval", m, "seed*",
+                                               suite, "results.json")):
+                with open(path) as f:
+                    rate = json.load(f)["summary"]["stall_rate"]
+                if rate is not None:  # no stop-and-go event in the run
+                    rates.setdefault((m, suite), []).append(100 * rate)
+    n = {m: min(len(rates.get((m, s), [])) for s in ("a-stopgo", "b-stopgo"))
+         for m in ("residual-retrain", "bc-oh")}
+    paper = "(the paper's thesis; no stall rate published)"
+    if n["residual-retrain"] < 2 or n["bc-oh"] < 2:
+        return [claim, paper, "pending: fewer than 2 seeds of residual's retrains (residual's "
+                "section-7 weights, 8 MB, are not kept)", "not yet", cmd]
+    parts, words = [], {}
+    for suite, name in (("a-stopgo", "town-a"), ("b-stopgo", "town-b")):
+        a, b = rates["residual-retrain", suite], rates["bc-oh", suite]
+        d, half, ma, mb = welch(a, b)
+        parts.append("%s %+.1f [%+.1f, %+.1f] (%.1f against %.1f %%; %d x %d seeds)" % (
+            name, d, d - half, d + half, ma, mb, len(a), len(b)))
+        word = ("confirmed" if d + half < 0 else "refuted" if d - half > 0 else
+                "not resolved at this power")
+        words.setdefault(word, []).append(name)
+    ours = ("residual-retrain - bc-oh, stall rate in points, Welch 95%%: %s; residual's are "
+            "retrains, other weights of its recipe" % "; ".join(parts))
+    verdict = verdict_by_part(words)
+    if n["residual-retrain"] < RETRAINS:
+        verdict = "not yet (interim: %d of %d retrains evaluated)" % (n["residual-retrain"],
+                                                                      RETRAINS)
+    return [claim, paper, ours, verdict, cmd]
+
+
 def probe_row():
     """The probe's claim (protocol section 11): residual's history effect is below bc-oh's, in
     the path-free and the blocked stopped frames; per group the difference of the means over
     training seeds with Welch's 95% interval (scipy), the verdict by section 8's rule."""
-    try:
-        from scipy import stats
-    except ImportError:
-        raise SystemExit("verdicts_doc.py: the probe's row needs scipy (Debian: python3-scipy, "
-                         "which /usr/bin/python3 has with the project's setup)")
     claim = "Seed 001: residual relies less on the past (probe: history effect below bc-oh's)"
     cmd = "`scripts/verdicts.sh probe`"
     root = os.path.join(ROOT, "results", "verdicts", "probe")
@@ -172,13 +226,7 @@ def probe_row():
              if r[group]["history_effect"] is not None]
         b = [r[group]["history_effect"] for r in vals["bc-oh"]
              if r[group]["history_effect"] is not None]
-        ma, mb = sum(a) / len(a), sum(b) / len(b)
-        va = sum((x - ma) ** 2 for x in a) / (len(a) - 1) / len(a)
-        vb = sum((x - mb) ** 2 for x in b) / (len(b) - 1) / len(b)
-        se = (va + vb) ** 0.5
-        df = (va + vb) ** 2 / (va ** 2 / (len(a) - 1) + vb ** 2 / (len(b) - 1)) if se > 0 else 1
-        half = stats.t.ppf(0.975, df) * se
-        d = ma - mb
+        d, half, ma, mb = welch(a, b)
         parts.append("%s %+.3f [%+.3f, %+.3f] (%.3f against %.3f)" % (
             name, d, d - half, d + half, ma, mb))
         word = ("confirmed" if d + half < 0 else "refuted" if d - half > 0 else
@@ -645,6 +693,7 @@ def rows():
     out.append(table10_row())
     out += ablation_rows()
     out.append(probe_row())
+    out.append(stall_row())
     return out
 
 
@@ -686,7 +735,8 @@ def compute_line():
     """The training compute of the kept run records, by device: the sum of their epochs'
     seconds (checkpoint.json's metrics), per group of runs."""
     groups = [("section 7", "train", "verdicts"), ("the device check", "cuda", "verdicts"),
-              ("superseded", "superseded", "verdicts"), ("free mode", "train", "verdicts-free")]
+              ("superseded", "superseded", "verdicts"), ("retrains", "retrain", "verdicts"),
+              ("free mode", "train", "verdicts-free")]
     parts = []
     for name, kind, results in groups:
         by_device = {}
@@ -748,6 +798,13 @@ def runs_section():
                   "validation loss | why |", "|---|---:|---|---|---|---|---|---:|---|"]
         lines += [run_line(method, seed, cols) + " %s |" % why
                   for _, seed, method, cols, why in sorted(old)]
+    retrains = sorted((methods.index(method) if method in methods else 99, seed, method,
+                       run_columns(ck, seed)) for seed, method, _, ck in run_records("retrain"))
+    if retrains:
+        lines += ["", "- **Retrains** (section 11, session 39: residual's stop-and-go stall rate; "
+                  "the recipe, data folder and seed of its section-7 run, other weights; "
+                  "evaluated on the stop-and-go suites only, labelled METHOD-retrain):", ""]
+        lines += RUNS_HEAD + [run_line(method, seed, cols) for _, seed, method, cols in retrains]
     free = sorted((methods.index(method) if method in methods else 99, seed, method,
                    run_columns(ck, seed)) for seed, method, _, ck in run_records("train",
                                                                                  "verdicts-free"))

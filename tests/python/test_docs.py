@@ -209,13 +209,24 @@ class Docs(unittest.TestCase):
         try:
             doc = load_verdicts_doc(tmp)
             self.assertIn("): no run yet.", doc.compute_line())
-            write_run_record(tmp, "bc-oh", 0, "cpu", metrics=[{"seconds": 1800}, {"seconds": 900}])
-            write_run_record(tmp, "bc-oh", 1, "cpu", metrics=[{"seconds": 900}])
-            write_run_record(tmp, "keyframe", 0, "cuda", metrics=[{"seconds": 360}])
-            write_run_record(tmp, "residual", 0, "cuda", kind="cuda", metrics=[{"seconds": 36}])
+            rec = dict(best_epoch=2, epochs_done=3, best_loss=0.5)
+            write_run_record(tmp, "bc-oh", 0, "cpu", metrics=[{"seconds": 1800}, {"seconds": 900}],
+                             **rec)
+            write_run_record(tmp, "bc-oh", 1, "cpu", metrics=[{"seconds": 900}], **rec)
+            write_run_record(tmp, "keyframe", 0, "cuda", metrics=[{"seconds": 360}], **rec)
+            write_run_record(tmp, "residual", 0, "cuda", kind="cuda", metrics=[{"seconds": 36}],
+                             **rec)
+            write_run_record(tmp, "residual", 3, "cpu", kind="retrain", metrics=[{"seconds": 720}],
+                             **rec)
             line = doc.compute_line()
             self.assertTrue(line.endswith("section 7: cpu 1.00 h over 2 runs, cuda 0.10 h over 1 "
-                                          "run; the device check: cuda 0.01 h over 1 run."), line)
+                                          "run; the device check: cuda 0.01 h over 1 run; "
+                                          "retrains: cpu 0.20 h over 1 run."), line)
+            lines = doc.runs_section()
+            at = [i for i, x in enumerate(lines) if x.startswith("- **Retrains**")]
+            self.assertEqual(len(at), 1)  # the retrain's table: its one run, data D2 (odd seed)
+            self.assertEqual(lines[at[0] + 4], "| residual | 3 | D2 | cpu | not recorded | ? | "
+                                               "2 of 3 | 0.50000 |")
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
@@ -448,6 +459,45 @@ class Docs(unittest.TestCase):
                 self.assertEqual(doc.probe_row()[3], "confirmed on path free, blocked")
             finally:
                 del os.environ["ROOT"]
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+    def test_the_stall_row_is_welchs_interval_of_the_retrains_against_bc_oh(self):
+        # Hand-made stop-and-go summaries of 3 residual retrains and 4 bc-oh seeds, one bc-oh
+        # run with no event (stall_rate null: left out); the oracle is statsmodels' two-sample
+        # t interval with unequal variances.
+        import json
+        import shutil
+        import tempfile
+        from statsmodels.stats.weightstats import CompareMeans, DescrStatsW
+        tmp = tempfile.mkdtemp(prefix="cd_stall_")
+        try:
+            values = {"residual-retrain": [(0.10, 0.0), (0.20, 0.05), (0.05, 0.10)],
+                      "bc-oh": [(0.30, 0.10), (0.45, 0.0), (0.40, 0.20), (0.35, None),
+                                (0.5, 0.3)]}
+            doc = load_verdicts_doc(tmp)
+            self.assertTrue(doc.stall_row()[2].startswith("pending"))  # nothing evaluated yet
+            for m, rows in values.items():
+                for s, pair in enumerate(rows):
+                    for suite, rate in zip(("a-stopgo", "b-stopgo"), pair):
+                        d = os.path.join(tmp, "results", "verdicts", "eval", m, "seed%d" % s, suite)
+                        os.makedirs(d)
+                        with open(os.path.join(d, "results.json"), "w") as f:
+                            json.dump({"summary": {"stall_rate": rate}}, f)
+            row = doc.stall_row()
+            for k, name in ((0, "town-a"), (1, "town-b")):
+                a = [100 * v[k] for v in values["residual-retrain"]]
+                b = [100 * v[k] for v in values["bc-oh"] if v[k] is not None]
+                lo, hi = CompareMeans(DescrStatsW(a), DescrStatsW(b)).tconfint_diff(
+                    alpha=0.05, usevar="unequal")
+                d = sum(a) / len(a) - sum(b) / len(b)
+                self.assertIn("%s %+.1f [%+.1f, %+.1f]" % (name, d, lo, hi), row[2])
+            self.assertIn("3 x 5 seeds", row[2])
+            self.assertIn("3 x 4 seeds", row[2])  # town-b: bc-oh's eventless run left out
+            self.assertEqual(row[3], "not yet (interim: 3 of 5 retrains evaluated)")
+            doc.RETRAINS = 3  # every retrain in: a verdict per suite
+            self.assertEqual(doc.stall_row()[3],
+                             "confirmed on town-a; not resolved at this power on town-b")
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 

@@ -583,6 +583,43 @@ class VerdictsAblationsTest(VerdictsStandIn):
                           % (out, run, out, folder), r.stderr)
         self.assertIn("secondary: 5 evaluation(s) skipped for want of weights", r.stderr)
 
+    def test_retrains_train_apart_and_are_evaluated_on_the_stop_and_go_suites_only(self):
+        # Protocol section 11 (session 39): TRAIN=retrain trains into retrain/seedN/METHOD on
+        # the seed's data folder, and secondary evaluates those alone, labelled METHOD-retrain.
+        out = os.path.join(self.dir, "out")
+        env = dict(os.environ, CD=self.cd, OUT=out, KEEP=os.path.join(self.dir, "keep"),
+                   CONFIGS=self.configs, TRAIN="retrain", METHODS="residual",
+                   SEEDS_RETRAIN="0 1", SEEDS_OTHERS="0", ABLATION_LABELS="residual-b2")
+        script = os.path.join(SOURCE, "scripts", "verdicts.sh")
+        r = subprocess.run([script, "train", "secondary"], cwd=SOURCE, env=env,
+                           capture_output=True, text=True, timeout=120)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        trains = [c for c in self.calls() if c[0] == "train"]
+        self.assertEqual([(c[c.index("--out") + 1], c[c.index("--data") + 1], c[c.index("--seed") + 1])
+                          for c in trains],
+                         [(os.path.join(out, "retrain", "seed%d" % s, "residual"),
+                           os.path.join(out, "data", "hold1.0", "D%d" % (s + 1)), str(s))
+                          for s in (0, 1)])
+        evals = [c for c in self.calls() if c[0] == "eval"]
+        self.assertEqual(sorted((c[c.index("--out") + 1], c[c.index("--label") + 1],
+                                 c[c.index("--checkpoint") + 1]) for c in evals),
+                         [(os.path.join(out, "eval", "residual-retrain", "seed%d" % s, suite),
+                           "residual-retrain", os.path.join(out, "retrain", "seed%d" % s, "residual"))
+                          for s in (0, 1) for suite in ("a-stopgo", "b-stopgo")])
+        for step in ("eval", "ablations", "probe", "gpu-list"):
+            r = subprocess.run([script, step], cwd=SOURCE, env=env, capture_output=True,
+                               text=True, timeout=120)
+            self.assertNotEqual(r.returncode, 0, step)
+            self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+            self.assertIn("TRAIN=retrain", r.stderr)
+        for train, step, code, msg in (("bogus", "report", 2, "unknown TRAIN 'bogus'"),
+                                       ("cuda", "train", 1, "TRAIN=cuda runs train on a lent GPU")):
+            r = subprocess.run([script, step], cwd=SOURCE, env=dict(env, TRAIN=train),
+                               capture_output=True, text=True, timeout=120)
+            self.assertEqual(r.returncode, code, r.stderr)
+            self.assertIn(msg, r.stderr)
+        self.assertEqual(len([c for c in self.calls() if c[0] in ("train", "eval")]), 6)
+
     def test_the_device_check_evaluates_the_cuda_runs_under_their_own_label(self):
         out = os.path.join(self.dir, "out")
         os.makedirs(os.path.join(out, "cuda", "seed0", "residual"))
