@@ -67,7 +67,8 @@
 #            retrain: `train` retrains METHODS at SEEDS_RETRAIN into retrain/seedN/METHOD and
 #            `secondary` evaluates those on the stop-and-go suites only, labelled
 #            METHOD-retrain (protocol section 11, session 39: residual's stall rate, whose
-#            section-7 weights are not kept); `eval`, `ablations` and `probe` refuse it
+#            section-7 weights are not kept); `eval`, `ablations`, `probe` and `gpu-list`
+#            refuse it, and `train` refuses cuda (those runs train on a lent GPU)
 #   SEEDS_RETRAIN  the seeds of TRAIN=retrain (default: "0 1 2 3 4")
 #   ABLATION_LABELS  the ablations trained and evaluated (default: all four; camera: the two
 #            two-stream ones)
