@@ -74,11 +74,15 @@ def iqm_row(claim, paper, envs, a, b, command):
             continue
         parts.append("%s %+.1f [%+.1f, %+.1f] (%d x %d seeds)" % (
             env, r["difference"], r["lo"], r["hi"], r["seeds_a"], r["seeds_b"]))
-        word = {"A better": "confirmed", "B better": "refuted"}.get(r["verdict"],
-                                                                    "not resolved at this power")
-        words.setdefault(word, []).append(env)
+        words.setdefault(claim_word(r["verdict"]), []).append(env)
     ours = "%s - %s, IQM return: %s" % (a, b, "; ".join(parts))
     return [claim, paper, ours, verdict_by_part(words), "`%s`" % command]
+
+
+def claim_word(verdict):
+    """report --compare's verdict on "A better than B" as the claim's word (section 8)."""
+    return {"A better": "confirmed", "B better": "refuted"}.get(verdict,
+                                                                "not resolved at this power")
 
 
 def verdict_by_part(words):
@@ -522,8 +526,7 @@ def table_rows():
                               for d in res + other], "residual", "bc-oh", "success_rate")[0]
             parts.append("%s %s [%s, %s]" % (word, pts(r["difference"]), pts(r["lo"]),
                                              pts(r["hi"])))
-            words.setdefault({"A better": "confirmed", "B better": "refuted"}.get(
-                r["verdict"], "not resolved at this power"), []).append(word)
+            words.setdefault(claim_word(r["verdict"]), []).append(word)
         ours = "residual - bc-oh, success_rate in points: %s (%d x %d seeds)" % (
             "; ".join(parts), len(res), len(other))
         verdict = verdict_by_part(words)
@@ -563,10 +566,8 @@ def failure_rows(primary):
             parts.append("%s %s [%s, %s] (%d x %d seeds)" % (
                 m, pts(over["difference"]), pts(over["lo"]), pts(over["hi"]), len(res),
                 len(other)))
-            word = "not yet" if m in interim else {"A better": "confirmed",
-                                                   "B better": "refuted"}.get(
-                over["verdict"], "not resolved at this power")
-            words.setdefault(word, []).append(m)
+            words.setdefault("not yet" if m in interim else claim_word(over["verdict"]),
+                             []).append(m)
         ours = "residual - baseline, %s in points: %s" % (metric, "; ".join(parts))
         out.append([claim, paper, ours, verdict_by_part(words), "`scripts/verdicts.sh report`"])
     return out
