@@ -82,6 +82,13 @@ def copy_kept_run(tmp, label, seed, condition, src_method=None, src_seed=None,
     return res["episodes"]
 
 
+def copy_kept_seeds(tmp, labels, seeds, **kw):
+    """copy_kept_run of each of LABELS at each of SEEDS in the six CONDITIONS (KW passed on);
+    returns {(label, seed, condition): its episodes}."""
+    return {(m, s, c): copy_kept_run(tmp, m, s, c, **kw)
+            for m in labels for s in seeds for c in CONDITIONS}
+
+
 def write_run_record(tmp, label, seed, device, kind="train", runtime=(), **fields):
     """The run record (checkpoint.json: its runtime's device, RUNTIME's other keys and FIELDS)
     of LABEL's training seed SEED under results/verdicts/KIND in the checkout under tmp, where
@@ -148,11 +155,8 @@ class Docs(unittest.TestCase):
         import tempfile
         tmp = tempfile.mkdtemp(prefix="cd_tables_")
         try:
-            success = {}
-            for m in ("residual", "bc-oh"):
-                for s in (0, 1):
-                    for c in CONDITIONS:
-                        success[m, s, c] = success_share(copy_kept_run(tmp, m, s, c))
+            success = {k: success_share(eps) for k, eps in
+                       copy_kept_seeds(tmp, ("residual", "bc-oh"), (0, 1)).items()}
             doc = load_verdicts_doc(tmp)
             rows = doc.table_rows()
             self.assertEqual([r[0][:16] for r in rows], ["Seed 001 table 7", "Seed 001 table 8",
@@ -180,12 +184,8 @@ class Docs(unittest.TestCase):
         import tempfile
         tmp = tempfile.mkdtemp(prefix="cd_failures_")
         try:
-            eps = {}
-            for m in ("residual", "bc-oh"):
-                for s in (0, 1):
-                    for c in CONDITIONS:
-                        eps[m, s, c] = copy_kept_run(
-                            tmp, m, s, c, src_method="dagger" if m == "residual" else None)
+            eps = copy_kept_seeds(tmp, ("residual",), (0, 1), src_method="dagger")
+            eps.update(copy_kept_seeds(tmp, ("bc-oh",), (0, 1)))
             doc = load_verdicts_doc(tmp)
             rows = doc.failure_rows(doc.primary_rows())
             for row, classes in zip(rows, ({"stuck", "restart_stall", "stopped_free"},
@@ -239,10 +239,8 @@ class Docs(unittest.TestCase):
         try:
             success = {}
             for m, seeds in (("residual", (0, 1, 2)), ("bc-oh", (0, 1))):
-                for s in seeds:
-                    for c in CONDITIONS:
-                        success[m, s, c] = success_share(
-                            copy_kept_run(tmp, m, s, c, results="verdicts-free"))
+                success.update((k, success_share(eps)) for k, eps in copy_kept_seeds(
+                    tmp, (m,), seeds, results="verdicts-free").items())
             doc = load_verdicts_doc(tmp)
             rows = doc.free_rows()
             self.assertIn("in free mode", rows[0][0])
