@@ -309,7 +309,9 @@ def table10_row():
 def ablation_rows():
     """Tables 11 and B.5 (protocol section 11): each ablation against its base method on
     verdicts-town-a-dense, by report --compare (success rate), interim until the ablation's
-    five seeds and the base method's ten are evaluated."""
+    five seeds and the base method's ten are evaluated. Where the two sides trained on other
+    devices (session 40), the row names them and adds the device-matched comparison against
+    the base method's seeds on the ablation's device, if it has any (device_word)."""
     cmd = "scripts/verdicts.sh secondary"
     out = []
     for claim, paper, label, base, ablation_better in (
@@ -323,21 +325,57 @@ def ablation_rows():
             ("Seed 001 B.5: residual with 4 memory branches falls below 1", "50.7 against 52.0 %",
              "residual-b4", "residual", False)):
         root = os.path.join(ROOT, "results", "verdicts", "eval")
-        abl = sorted(glob.glob(os.path.join(root, label, "seed*", "a-dense")))
-        ref = [os.path.join(d, "a-dense") for d in evaluated_seeds(base)]
-        abl = [d for d in abl if os.path.exists(os.path.join(d, "results.json"))]
+        abl = [d for d in sorted(glob.glob(os.path.join(root, label, "seed*")))
+               if os.path.exists(os.path.join(d, "a-dense", "results.json"))]
+        ref = evaluated_seeds(base)
         if not abl or not ref:
             out.append([claim, paper, "pending: the protocol's runs (docs/protocol.md) are not "
                         "evaluated yet", "not yet", "`%s`" % cmd])
             continue
-        dirs = [os.path.relpath(d, ROOT) for d in abl + ref]
-        row = compare_row(claim, paper, dirs, label, base, "success_rate", ablation_better, cmd)
-        row[2] += " (%d x %d seeds)" % (len(abl), len(ref))
+
+        def compare(ref_seeds):
+            dirs = [os.path.relpath(os.path.join(d, "a-dense"), ROOT) for d in abl + ref_seeds]
+            r = compare_row(claim, paper, dirs, label, base, "success_rate", ablation_better, cmd)
+            r[2] += " (%d x %d seeds)" % (len(abl), len(ref_seeds))
+            return r
+
+        row = compare(ref)
+        abl_dev, ref_dev = devices_of(label, abl), devices_of(base, ref)
+        matched = None
+        if len(set(abl_dev) | set(ref_dev)) > 1:
+            row[2] += "; devices: %s; %s" % (on_devices(label, abl_dev), on_devices(base, ref_dev))
+            if len(abl_dev) == 1 and next(iter(abl_dev)) in ref_dev:
+                dev = next(iter(abl_dev))
+                matched = compare([d for d in ref if device_of(base, d) == dev])
+                row[2] += "; device-matched (%s): %s" % (dev, matched[2].split(": ", 1)[1])
         if len(abl) < PLANNED["bc-so"] or len(ref) < PLANNED[base]:
             row[3] = "not yet (interim: %d of 5 and %d of %d planned seeds evaluated)" % (
                 len(abl), len(ref), PLANNED[base])
+        elif matched is not None:
+            row[3] = device_word(row[3], matched[3])
+        elif len(set(abl_dev) | set(ref_dev)) > 1:
+            row[3] += " (device-confounded)"
         out.append(row)
     return out
+
+
+def on_devices(label, by_device):
+    """"LABEL on cpu (seeds 0-4)", "LABEL on cpu (seeds 10-14), cuda (seeds 0-9)": BY_DEVICE
+    is devices_of's {device: [seed numbers]}."""
+    return "%s on %s" % (label, ", ".join("%s (seeds %s)" % (dev, seed_ranges(n))
+                                       for dev, n in sorted(by_device.items())))
+
+
+def device_word(word, matched_word):
+    """Protocol section 11 (session 40): the verdict of a comparison over mixed devices WORD
+    beside its device-matched one MATCHED_WORD: WORD when both say the same (confirmed,
+    refuted, not resolved), otherwise not resolved (device-dependent); the matched word follows."""
+    def kind(w):
+        return "not resolved" if w.startswith("not resolved") else w
+    if kind(word) == kind(matched_word):
+        return "%s; device-matched: %s" % (word, matched_word)
+    return "not resolved at this power (device-dependent: %s over all seeds; device-matched: %s)" % (
+        word, matched_word)
 
 
 def residual_vs_row(claim, label, m, pending, pending_cmd, device=None):
@@ -481,8 +519,7 @@ def primary_rows():
                 row[2] += "; device confounded: residual on %s, %s on %s" % (
                     "/".join(sorted(res_devices)), m, "/".join(sorted(by_device)))
             elif len(by_device) > 1:
-                row[2] += "; devices mixed: %s on %s" % (m, ", ".join(
-                    "%s (seeds %s)" % (dev, seed_ranges(n)) for dev, n in sorted(by_device.items())))
+                row[2] += "; devices mixed: " + on_devices(m, by_device)
             # Section 11 (session 30): the device-matched comparison becomes the primary one
             # once residual's CUDA runs have the other's seeds (all trained on CUDA: session
             # 35); until then both wait.

@@ -421,6 +421,75 @@ class Docs(unittest.TestCase):
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
+    def test_the_ablation_rows_name_their_devices_and_add_the_device_matched_comparison(self):
+        # Protocol section 11 (session 40). A checkout of its own: two-stream bc-oh and
+        # two-stream keyframe "trained" on the CPU at seeds 0-4, bc-oh at seeds 0-9 (0-7 CUDA,
+        # 8-9 CPU) and keyframe at 0-9 (all CUDA), residual-b2 and residual (all CPU), each
+        # "evaluated" by copies of the kept 25-task runs. Oracle: the mean success on a-dense
+        # of each side by hand.
+        import shutil
+        import tempfile
+        tmp = tempfile.mkdtemp(prefix="cd_abl_")
+        try:
+            dense = {}
+            for label, src, seeds, cpu in (("two-stream-bc-oh", "residual", 5, 5),
+                                           ("two-stream-keyframe", "bc-oh", 5, 5),
+                                           ("residual-b2", "keyframe", 5, 5),
+                                           ("bc-oh", "bc-oh", 10, 2), ("keyframe", "keyframe", 10, 0),
+                                           ("residual", "residual", 10, 10)):
+                ablation = label not in ("bc-oh", "keyframe", "residual")
+                for s in range(seeds):
+                    for c in (["a-dense"] if ablation else CONDITIONS):
+                        eps = copy_kept_run(tmp, label, s, c, src, s % 3)
+                        if c == "a-dense":
+                            dense[label, s] = success_share(eps)
+                    write_run_record(tmp, label, s, "cpu" if s >= seeds - cpu else "cuda")
+            doc = load_verdicts_doc(tmp)
+
+            def mean(label, seeds):
+                return 100 * sum(dense[label, s] for s in seeds) / len(seeds)
+
+            bc, kf, b2, b4 = doc.ablation_rows()
+            main, matched = bc[2].split("; device-matched (cpu): ")
+            self.assertIn("two-stream-bc-oh - bc-oh, success_rate over 1 condition: %+.1f [" % (
+                mean("two-stream-bc-oh", range(5)) - mean("bc-oh", range(10))), main)
+            self.assertIn("(5 x 10 seeds); devices: two-stream-bc-oh on cpu (seeds 0-4); bc-oh "
+                          "on cpu (seeds 8-9), cuda (seeds 0-7)", main)
+            self.assertTrue(matched.startswith("%+.1f [" % (
+                mean("two-stream-bc-oh", range(5)) - mean("bc-oh", (8, 9)))), matched)
+            self.assertTrue(matched.endswith("(5 x 2 seeds)"), matched)
+            self.assertIn("; device-matched: ", bc[3])  # both words, by device_word
+            # keyframe has no CPU seed: confounded, no matched comparison.
+            self.assertNotIn("device-matched", kf[2])
+            self.assertIn("devices: two-stream-keyframe on cpu (seeds 0-4); keyframe on cuda "
+                          "(seeds 0-9)", kf[2])
+            self.assertTrue(kf[3].endswith(" (device-confounded)"), kf[3])
+            # B.5: one device on both sides, so nothing is added.
+            self.assertIn("residual-b2 - residual, success_rate over 1 condition: %+.1f [" % (
+                mean("residual-b2", range(5)) - mean("residual", range(10))), b2[2])
+            self.assertTrue(b2[2].endswith("(5 x 10 seeds)"), b2[2])
+            self.assertFalse(b2[3].startswith("not yet") or "device" in b2[3], b2[3])
+            self.assertEqual(b4[3], "not yet")  # no residual-b4 run
+            # Interim below five ablation seeds, whatever the devices say.
+            shutil.rmtree(os.path.join(tmp, "results", "verdicts", "eval", "two-stream-bc-oh",
+                                       "seed4"))
+            row = doc.ablation_rows()[0]
+            self.assertEqual(row[3], "not yet (interim: 4 of 5 and 10 of 10 planned seeds "
+                                     "evaluated)")
+            self.assertIn("(4 x 2 seeds)", row[2])
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+    def test_device_word_keeps_a_verdict_only_where_the_device_matched_one_agrees(self):
+        doc = load_verdicts_doc(ROOT)
+        nr = "not resolved at this power (half-width %.1f points)"
+        self.assertEqual(doc.device_word("confirmed", "confirmed"),
+                         "confirmed; device-matched: confirmed")
+        self.assertEqual(doc.device_word(nr % 5, nr % 9), nr % 5 + "; device-matched: " + nr % 9)
+        for a, b in (("confirmed", nr % 9), ("refuted", "confirmed"), (nr % 5, "refuted")):
+            self.assertEqual(doc.device_word(a, b), "not resolved at this power (device-dependent: "
+                             "%s over all seeds; device-matched: %s)" % (a, b))
+
     def test_the_probe_row_is_welchs_interval_of_the_kept_probes(self):
         # Hand-made probe reports of 3 residual and 4 bc-oh seeds; the oracle is statsmodels'
         # two-sample t interval with unequal variances.
