@@ -477,6 +477,13 @@ class Docs(unittest.TestCase):
             self.assertEqual(row[3], "not yet (interim: 4 of 5 and 10 of 10 planned seeds "
                                      "evaluated)")
             self.assertIn("(4 x 2 seeds)", row[2])
+            # Once section 7 adds seeds 10-14 to bc-oh, its plan is 15.
+            for s in range(10, 12):
+                for c in CONDITIONS:
+                    copy_kept_run(tmp, "bc-oh", s, c, "bc-oh", s % 3)
+            row = load_verdicts_doc(tmp).ablation_rows()[0]
+            self.assertTrue(row[3].startswith("not yet (interim: 4 of 5 and 12 of 15 planned"),
+                            row[3])
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
