@@ -122,8 +122,10 @@ PAPER_FAILURES = {
 }
 
 
-def paper_success(method):
-    return sum(100 - c - t for c, t in PAPER_FAILURES[method]) / len(PAPER_FAILURES[method])
+def paper_success(label):
+    """The paper's mean success of LABEL's method over the six conditions (tables 7-9)."""
+    m = base_of(label)[0]
+    return sum(100 - c - t for c, t in PAPER_FAILURES[m]) / len(PAPER_FAILURES[m])
 
 
 def evaluated_seeds(method, results="verdicts"):
@@ -138,9 +140,23 @@ def evaluated_seeds(method, results="verdicts"):
     return seeds
 
 
-def device_of(method, seed_dir):
-    seed = os.path.basename(seed_dir)
-    base = os.path.join(ROOT, "results", "verdicts", "train", seed, method)
+KINDS = ("cpu", "cuda", "retrain")  # section 11's runs: label METHOD-KIND, folder KIND/seedN/METHOD
+
+
+def base_of(label):
+    """LABEL's method and the folder its runs trained into: (keyframe, cpu) for keyframe-cpu,
+    (residual, cuda) for residual-cuda, (bc-oh, train) for bc-oh."""
+    for kind in KINDS:
+        if label.endswith("-" + kind):
+            return label[:-len(kind) - 1], kind
+    return label, "train"
+
+
+def device_of(label, seed_dir):
+    """The device that LABEL's run of the seed of SEED_DIR (a .../seedN folder) trained on, from
+    its kept run record (None without one)."""
+    method, kind = base_of(label)
+    base = os.path.join(ROOT, "results", "verdicts", kind, os.path.basename(seed_dir), method)
     for path in (base, base + ".record"):
         try:
             with open(os.path.join(path, "checkpoint.json")) as f:
@@ -312,7 +328,9 @@ def ablation_rows():
     five seeds and the base method's planned ones (planned: seeds 10-14 too once added) are
     evaluated. Where the two sides trained on other devices (session 40), the row names them
     and adds the device-matched comparison against the base method's seeds on the ablation's
-    device, if it has any (device_word)."""
+    device, or else against the base method trained again on the CPU (METHOD-cpu, interim
+    until its planned seeds), if there are any (device_word); without one, the verdict is
+    marked device-confounded."""
     cmd = "scripts/verdicts.sh secondary"
     out = []
     for claim, paper, label, base, ablation_better in (
@@ -334,26 +352,35 @@ def ablation_rows():
                         "evaluated yet", "not yet", "`%s`" % cmd])
             continue
 
-        def compare(ref_seeds):
+        def compare(ref_label, ref_seeds):
             dirs = [os.path.relpath(os.path.join(d, "a-dense"), ROOT) for d in abl + ref_seeds]
-            r = compare_row(claim, paper, dirs, label, base, "success_rate", ablation_better, cmd)
+            r = compare_row(claim, paper, dirs, label, ref_label, "success_rate", ablation_better,
+                            cmd)
             r[2] += " (%d x %d seeds)" % (len(abl), len(ref_seeds))
             return r
 
-        row = compare(ref)
+        row = compare(base, ref)
         abl_dev, ref_dev = devices_of(label, abl), devices_of(base, ref)
-        matched = None
+        matched, again = None, evaluated_seeds(base + "-cpu")
         if len(set(abl_dev) | set(ref_dev)) > 1:
             row[2] += "; devices: %s; %s" % (on_devices(label, abl_dev), on_devices(base, ref_dev))
-            if len(abl_dev) == 1 and next(iter(abl_dev)) in ref_dev:
-                dev = next(iter(abl_dev))
-                matched = compare([d for d in ref if device_of(base, d) == dev])
+            dev = next(iter(abl_dev)) if len(abl_dev) == 1 else None
+            if dev in ref_dev:  # the base method's own seeds on the ablation's device
+                matched = compare(base, [d for d in ref if device_of(base, d) == dev])
+            elif dev == "cpu" and again:  # the base method trained again on the CPU (session 40)
+                matched = compare(base + "-cpu", again)
+            else:
+                again = []
+            if matched is not None:
                 row[2] += "; device-matched (%s): %s" % (dev, matched[2].split(": ", 1)[1])
         if len(abl) < PLANNED["bc-so"] or len(ref) < planned(base):
             row[3] = "not yet (interim: %d of 5 and %d of %d planned seeds evaluated)" % (
                 len(abl), len(ref), planned(base))
+        elif matched is not None and again and len(again) < planned(base + "-cpu"):
+            row[3] = "not yet (interim: %s-cpu has %d of %d planned seeds evaluated)" % (
+                base, len(again), planned(base + "-cpu"))
         elif matched is not None:
-            row[3] = device_word(row[3], matched[3])
+            row[3] = device_word(("over all seeds", row[3]), ("device-matched", matched[3]))
         elif len(set(abl_dev) | set(ref_dev)) > 1:
             row[3] += " (device-confounded)"
         out.append(row)
@@ -367,16 +394,17 @@ def on_devices(label, by_device):
                                        for dev, n in sorted(by_device.items())))
 
 
-def device_word(word, matched_word):
-    """Protocol section 11 (session 40): the verdict of a comparison over mixed devices WORD
-    beside its device-matched one MATCHED_WORD: WORD when both say the same (confirmed,
-    refuted, not resolved), otherwise not resolved (device-dependent); the matched word follows."""
+def device_word(*named):
+    """Protocol section 11 (session 40): one verdict from comparisons of one claim on other
+    devices, NAMED (name, word) pairs, the row's own first: its word when all say the same
+    (confirmed, refuted, not resolved) with the others' words after it, otherwise not resolved
+    (device-dependent), naming each."""
     def kind(w):
         return "not resolved" if w.startswith("not resolved") else w
-    if kind(word) == kind(matched_word):
-        return "%s; device-matched: %s" % (word, matched_word)
-    return "not resolved at this power (device-dependent: %s over all seeds; device-matched: %s)" % (
-        word, matched_word)
+    if len({kind(w) for _, w in named}) == 1:
+        return "; ".join([named[0][1]] + ["%s: %s" % nw for nw in named[1:]])
+    return "not resolved at this power (device-dependent: %s)" % "; ".join(
+        "%s: %s" % nw for nw in named)
 
 
 def residual_vs_row(claim, label, m, pending, pending_cmd, device=None):
@@ -465,9 +493,10 @@ def seeds_added():
 
 
 def planned(label):
-    """LABEL's planned seeds: section 7's, plus seeds 10-14 for residual (both devices) and
-    bc-oh once the power rule has added them."""
-    base = PLANNED["residual" if label == "residual-cuda" else label]
+    """LABEL's planned seeds: section 7's (a method trained again on the CPU, METHOD-cpu: its
+    method's), plus seeds 10-14 for residual (both devices) and bc-oh once the power rule has
+    added them."""
+    base = PLANNED[base_of(label)[0]]
     if label in ("residual", "residual-cuda", "bc-oh") and seeds_added():
         return base + ADDED_SEEDS
     return base
@@ -502,6 +531,7 @@ def power_row():
 
 
 BASELINES = ["bc-oh", "keyframe", "dagger", "bc-so", "hd", "fca"]  # section 3, against residual
+AGAIN_ON_CPU = ["keyframe"]  # section 11 (session 40): trained again on the CPU, METHOD-cpu
 
 
 def primary_rows():
@@ -529,6 +559,11 @@ def primary_rows():
                     cuda < len(seeds[1]) and not row[3].startswith("not yet"):
                 row[3] = ("not yet (interim: residual's CUDA runs have %d of the %d seeds of "
                           "%s; protocol section 11)" % (cuda, len(seeds[1]), m))
+                if m in AGAIN_ON_CPU:  # session 40: or the device-matched row on the CPU
+                    row[3] = row[3][:-1] + ("; or the device-matched row on the CPU below, with "
+                                            "%d of %s-cpu's %d seeds)" % (
+                                                len(evaluated_seeds(m + "-cpu")), m,
+                                                planned(m + "-cpu")))
         out.append(row)
     return out
 
@@ -650,40 +685,60 @@ def primary_endpoint(seed_dir):
     return 100 * sum(rates) / len(rates)
 
 
-def device_rows():
-    """The device check (protocol section 11, session 30): (a) residual trained on CUDA minus
-    residual trained on the CPU, the primary endpoint paired by seed with a t interval over the
-    seeds evaluated in both; (b) the device-matched comparisons residual (CUDA) - bc-oh and -
-    keyframe by report --compare as the primary rows. Interim until ten seeds of each."""
-    cmd = "`TRAIN=cuda METHODS=residual scripts/verdicts.sh eval report`"
-    claim = "Device check: training on CUDA instead of the CPU moves residual's primary endpoint"
+def device_effect_row(method, cuda_label, cpu_label, cmd):
+    """A device check (protocol section 11, sessions 30 and 40): METHOD's runs trained on CUDA
+    (CUDA_LABEL) minus its runs of the same seeds trained on the CPU (CPU_LABEL), the primary
+    endpoint paired by seed with a t interval over the seeds evaluated in both; interim until
+    METHOD's planned seeds."""
+    claim = "Device check: training on CUDA instead of the CPU moves %s's primary endpoint" % method
     paper = ("(no paper figure; protocol section 11. The device and the libtorch build change "
              "together: the runs table below names both)")
-    cpu = {os.path.basename(d): d for d in evaluated_seeds("residual")}
-    gpu = {os.path.basename(d): d for d in evaluated_seeds("residual-cuda")}
+    cpu = {os.path.basename(d): d for d in evaluated_seeds(cpu_label)}
+    gpu = {os.path.basename(d): d for d in evaluated_seeds(cuda_label)}
     both = sorted(set(cpu) & set(gpu), key=lambda s: int(s[4:]))
     if len(both) < 2:
-        out = [[claim, paper, "pending: %d seed%s evaluated with both devices" % (
-            len(both), "" if len(both) == 1 else "s"), "not yet", cmd]]
+        return [claim, paper, "pending: %d seed%s evaluated with both devices" % (
+            len(both), "" if len(both) == 1 else "s"), "not yet", cmd]
+    diffs = [primary_endpoint(gpu[s]) - primary_endpoint(cpu[s]) for s in both]
+    mean, lo, hi = t_interval_raw(diffs)
+    ours = ("%s (CUDA) - %s (CPU), mean success over the six conditions, paired by seed (%d "
+            "seeds), t 95%%: %+.1f [%+.1f, %+.1f] points" % (method, method, len(both), mean,
+                                                             lo, hi))
+    if lo > 0 or hi < 0:
+        word = "the device moves it (%s on CUDA)" % ("higher" if lo > 0 else "lower")
     else:
-        diffs = [primary_endpoint(gpu[s]) - primary_endpoint(cpu[s]) for s in both]
-        mean, lo, hi = t_interval_raw(diffs)
-        ours = ("residual (CUDA) - residual (CPU), mean success over the six conditions, paired "
-                "by seed (%d seeds), t 95%%: %+.1f [%+.1f, %+.1f] points" % (
-                    len(both), mean, lo, hi))
-        if lo > 0 or hi < 0:
-            word = "the device moves it (%s on CUDA)" % ("higher" if lo > 0 else "lower")
-        else:
-            word = "no device effect resolved (half-width %.1f points)" % ((hi - lo) / 2)
-        if len(both) < planned("residual"):
-            word = "not yet (interim: %d of %d seeds)" % (len(both), planned("residual"))
-        out = [[claim, paper, ours, word, cmd]]
+        word = "no device effect resolved (half-width %.1f points)" % ((hi - lo) / 2)
+    if len(both) < planned(method):
+        word = "not yet (interim: %d of %d seeds)" % (len(both), planned(method))
+    return [claim, paper, ours, word, cmd]
+
+
+def device_rows():
+    """The device checks (protocol section 11): (a) residual trained on CUDA minus residual
+    trained on the CPU (session 30), and keyframe's section-7 runs (CUDA) minus keyframe
+    trained again on the CPU (keyframe-cpu, session 40), each paired by seed; (b) the
+    device-matched comparisons: residual (CUDA) - bc-oh and - keyframe, all on CUDA, and
+    residual (CPU) - keyframe-cpu, all on the CPU, by report --compare as the primary rows.
+    Where both of keyframe's device-matched comparisons have their planned seeds, the CPU row's
+    verdict is device_word's of the two. Interim until the planned seeds of each."""
+    cmd = "`TRAIN=cuda METHODS=residual scripts/verdicts.sh eval report`"
+    cpu_cmd = "`TRAIN=cpu METHODS=keyframe scripts/verdicts.sh train eval report`"
+    out = [device_effect_row("residual", "residual-cuda", "residual", cmd),
+           device_effect_row("keyframe", "keyframe", "keyframe-cpu", cpu_cmd)]
     for m in ("bc-oh", "keyframe"):
         claim = ("Seed 001 tables 7-9, device-matched: residual beats %s, all trained on CUDA "
                  "(%s)" % (m, "primary endpoint" if m == "bc-oh" else "the primary endpoint's mean"))
         out.append(residual_vs_row(claim, "residual-cuda", m,
                                    "pending: residual's CUDA runs are not evaluated yet", cmd,
                                    device="cuda")[0])
+    claim = ("Seed 001 tables 7-9, device-matched: residual beats keyframe, both trained on this "
+             "CPU (keyframe trained again: keyframe-cpu; the primary endpoint's mean)")
+    row = residual_vs_row(claim, "residual", "keyframe-cpu",
+                          "pending: keyframe's CPU runs are not evaluated yet", cpu_cmd)[0]
+    cuda = out[-1][3]
+    if not row[3].startswith("not yet") and not cuda.startswith("not yet"):
+        row[3] = device_word(("on the CPU", row[3]), ("on CUDA", cuda))
+    out.append(row)
     return out
 
 
@@ -774,6 +829,7 @@ def compute_line():
     """The training compute of the kept run records, by device: the sum of their epochs'
     seconds (checkpoint.json's metrics), per group of runs."""
     groups = [("section 7", "train", "verdicts"), ("the device check", "cuda", "verdicts"),
+              ("trained again on the CPU", "cpu", "verdicts"),
               ("superseded", "superseded", "verdicts"), ("retrains", "retrain", "verdicts"),
               ("free mode", "train", "verdicts-free")]
     parts = []
@@ -809,14 +865,16 @@ def runs_section():
              "- **Tuning** (section 6, seed 0, validation suites; variants evaluated of four): " +
              ", ".join(tuned) + ". The choices: `results/verdicts/tuning.md` "
              "(`scripts/verdicts.sh choose`).",
-             "- **Training** (section 7; residual-cuda: the device check of section 11), the kept runs:",
+             "- **Training** (section 7; residual-cuda: the device check of section 11; "
+             "keyframe-cpu: keyframe trained again on this CPU, section 11, session 40), the kept "
+             "runs:",
              ""] + RUNS_HEAD
     runs = []
-    for kind in ("train", "cuda"):
+    for kind in ("train", "cuda", "cpu"):
         for seed, method, _, ck in run_records(kind):
-            if kind == "cuda":  # the device check's runs (protocol section 11)
-                method += "-cuda"
-            order = methods.index(method) if method in methods else 98 if kind == "cuda" else 99
+            if kind != "train":  # section 11's runs: the device check's, or trained again
+                method += "-" + kind
+            order = methods.index(method) if method in methods else 98 if kind != "train" else 99
             runs.append((order, seed, method, run_columns(ck, seed)))
     lines += [run_line(method, seed, cols) for _, seed, method, cols in sorted(runs)]
     if not runs:
@@ -871,7 +929,7 @@ def runs_section():
     lines += ["", compute_line()]
     devices = {}
     for _, _, method, (_, device, *_) in runs:
-        if not method.endswith("-cuda"):
+        if base_of(method)[1] == "train":
             devices.setdefault(method, set()).add(device)
     base = devices.get("residual", set())
     confounded = [m for m in methods if m != "residual" and m in devices and base and
@@ -879,7 +937,7 @@ def runs_section():
     if confounded:
         lines += ["", "Device and method are confounded in residual - %s: residual's runs "
                   "trained on %s, theirs on %s (protocol section 11); what the device does to a "
-                  "method's mean is not measured." % (", ".join(confounded), "/".join(sorted(base)),
+                  "method's mean is measured only by the device checks above." % (", ".join(confounded), "/".join(sorted(base)),
                                                       "/".join(sorted(set().union(
                                                           *(devices[m] for m in confounded)))))]
     return lines

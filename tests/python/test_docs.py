@@ -284,12 +284,12 @@ class Docs(unittest.TestCase):
                 sum(diffs) / 3, lo, hi), rows[0][2])
             self.assertEqual(rows[0][3], "not yet (interim: 3 of 10 seeds)")
             # Device-matched: residual-cuda's four seeds against bc-oh's two, by report.
-            self.assertIn("residual-cuda - bc-oh, success_rate over 6 conditions", rows[1][2])
-            self.assertIn("(4 x 2 seeds)", rows[1][2])
+            self.assertIn("residual-cuda - bc-oh, success_rate over 6 conditions", rows[2][2])
+            self.assertIn("(4 x 2 seeds)", rows[2][2])
             a = sum(endpoint["residual-cuda", s] for s in (0, 1, 2, 4)) / 4
             b = sum(endpoint["bc-oh", s] for s in (0, 1)) / 2
-            self.assertIn("%+.1f [" % (a - b), rows[1][2])
-            self.assertIn("pending", rows[2][2])  # keyframe: nothing evaluated
+            self.assertIn("%+.1f [" % (a - b), rows[2][2])
+            self.assertIn("pending", rows[3][2])  # keyframe: nothing evaluated
             # Protocol section 11 (session 35): a bc-oh seed trained on the CPU leaves the
             # device-matched comparison and its plan; the CPU comparison takes it and says so.
             for c in CONDITIONS:
@@ -298,7 +298,7 @@ class Docs(unittest.TestCase):
             for s in (0, 1, 2):
                 write_run_record(tmp, "residual", s, "cpu")
             doc = load_verdicts_doc(tmp)
-            matched = doc.device_rows()[1]
+            matched = doc.device_rows()[2]
             self.assertIn("(4 x 2 seeds)", matched[2])
             self.assertIn("%+.1f [" % (a - b), matched[2])
             self.assertTrue(matched[3].startswith("not yet (interim: 4 of 10 and 2 of 9 planned"),
@@ -308,6 +308,70 @@ class Docs(unittest.TestCase):
                           cpu[2])
             self.assertNotIn("device confounded", cpu[2])
             self.assertEqual(doc.primary_comparison()[0], "residual")
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+    def test_keyframe_trained_again_on_the_cpu_gives_its_device_rows(self):
+        # Protocol section 11 (session 40). A checkout of its own: residual (CPU), keyframe
+        # (CUDA), keyframe-cpu (records under results/verdicts/cpu) and residual-cuda at seeds
+        # 0-9, two-stream keyframe (CPU) at 0-4, "evaluated" by copies of the kept 25-task runs.
+        # Oracle: mean success by hand, statsmodels' t interval of the paired differences.
+        import shutil
+        import tempfile
+        from statsmodels.stats.weightstats import DescrStatsW
+        tmp = tempfile.mkdtemp(prefix="cd_cpu_")
+        try:
+            endpoint, dense = {}, {}
+            for label, src, kind, device in (("residual", "residual", "train", "cpu"),
+                                             ("keyframe", "keyframe", "train", "cuda"),
+                                             ("keyframe-cpu", "bc-oh", "cpu", "cpu"),
+                                             ("residual-cuda", "residual", "cuda", "cuda")):
+                for s in range(10):
+                    success = {c: success_share(copy_kept_run(tmp, label, s, c, src, s % 3))
+                               for c in CONDITIONS}
+                    endpoint[label, s] = 100 * sum(success.values()) / 6
+                    dense[label, s] = success["a-dense"]
+                    write_run_record(tmp, label.split("-")[0], s, device, kind)
+            for s in range(5):
+                dense["two-stream-keyframe", s] = success_share(copy_kept_run(
+                    tmp, "two-stream-keyframe", s, "a-dense", "residual", s % 3))
+                write_run_record(tmp, "two-stream-keyframe", s, "cpu")
+            doc = load_verdicts_doc(tmp)
+            rows = doc.device_rows()
+            diffs = [endpoint["keyframe", s] - endpoint["keyframe-cpu", s] for s in range(10)]
+            lo, hi = DescrStatsW(diffs).tconfint_mean(alpha=0.05)
+            self.assertIn("keyframe (CUDA) - keyframe (CPU), mean success over the six conditions, "
+                          "paired by seed (10 seeds), t 95%%: %+.1f [%+.1f, %+.1f] points" % (
+                              sum(diffs) / 10, lo, hi), rows[1][2])
+            self.assertFalse(rows[1][3].startswith("not yet"), rows[1][3])
+            cpu, cuda = rows[-1], rows[-2]
+            self.assertIn("residual - keyframe-cpu, success_rate over 6 conditions: %+.1f [" % (
+                sum(endpoint["residual", s] - endpoint["keyframe-cpu", s] for s in range(10)) / 10),
+                cpu[2])
+            self.assertIn("(10 x 10 seeds)", cpu[2])
+            self.assertEqual(cpu[1], cuda[1])  # the paper's figures: residual's and keyframe's
+            # Both device-matched comparisons have their seeds: one verdict from the two.
+            alone = doc.residual_vs_row("x", "residual", "keyframe-cpu", "", "")[0][3]
+            self.assertEqual(cpu[3], doc.device_word(("on the CPU", alone), ("on CUDA", cuda[3])))
+            # Table 11: two-stream keyframe against keyframe-cpu, the device-matched comparison.
+            abl = doc.ablation_rows()[1]
+            main, matched = abl[2].split("; device-matched (cpu): ")
+            self.assertIn("devices: two-stream-keyframe on cpu (seeds 0-4); keyframe on cuda "
+                          "(seeds 0-9)", main)
+            self.assertTrue(matched.startswith("%+.1f [" % (
+                100 * (sum(dense["two-stream-keyframe", s] for s in range(5)) / 5 -
+                       sum(dense["keyframe-cpu", s] for s in range(10)) / 10))), matched)
+            self.assertTrue(matched.endswith("(5 x 10 seeds)"), matched)
+            self.assertIn("; device-matched: ", abl[3])
+            # With keyframe-cpu short of its ten seeds, both wait.
+            for s in range(3, 10):
+                shutil.rmtree(os.path.join(tmp, "results", "verdicts", "eval", "keyframe-cpu",
+                                           "seed%d" % s))
+            doc = load_verdicts_doc(tmp)
+            self.assertEqual(doc.ablation_rows()[1][3],
+                             "not yet (interim: keyframe-cpu has 3 of 10 planned seeds evaluated)")
+            self.assertEqual(doc.device_rows()[-1][3],
+                             "not yet (interim: 10 of 10 and 3 of 10 planned seeds evaluated)")
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
@@ -490,12 +554,17 @@ class Docs(unittest.TestCase):
     def test_device_word_keeps_a_verdict_only_where_the_device_matched_one_agrees(self):
         doc = load_verdicts_doc(ROOT)
         nr = "not resolved at this power (half-width %.1f points)"
-        self.assertEqual(doc.device_word("confirmed", "confirmed"),
+        all_, matched = "over all seeds", "device-matched"
+        self.assertEqual(doc.device_word((all_, "confirmed"), (matched, "confirmed")),
                          "confirmed; device-matched: confirmed")
-        self.assertEqual(doc.device_word(nr % 5, nr % 9), nr % 5 + "; device-matched: " + nr % 9)
+        self.assertEqual(doc.device_word((all_, nr % 5), (matched, nr % 9)),
+                         nr % 5 + "; device-matched: " + nr % 9)
         for a, b in (("confirmed", nr % 9), ("refuted", "confirmed"), (nr % 5, "refuted")):
-            self.assertEqual(doc.device_word(a, b), "not resolved at this power (device-dependent: "
-                             "%s over all seeds; device-matched: %s)" % (a, b))
+            self.assertEqual(doc.device_word((all_, a), (matched, b)),
+                             "not resolved at this power (device-dependent: over all seeds: %s; "
+                             "device-matched: %s)" % (a, b))
+        self.assertEqual(doc.device_word(("on the CPU", "refuted"), ("on CUDA", "refuted")),
+                         "refuted; on CUDA: refuted")
 
     def test_the_probe_row_is_welchs_interval_of_the_kept_probes(self):
         # Hand-made probe reports of 3 residual and 4 bc-oh seeds; the oracle is statsmodels'
