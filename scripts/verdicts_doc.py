@@ -361,22 +361,21 @@ def ablation_rows():
 
         row = compare(base, ref)
         abl_dev, ref_dev = devices_of(label, abl), devices_of(base, ref)
-        matched, again = None, evaluated_seeds(base + "-cpu")
+        matched = again = None
         if len(set(abl_dev) | set(ref_dev)) > 1:
             row[2] += "; devices: %s; %s" % (on_devices(label, abl_dev), on_devices(base, ref_dev))
             dev = next(iter(abl_dev)) if len(abl_dev) == 1 else None
             if dev in ref_dev:  # the base method's own seeds on the ablation's device
                 matched = compare(base, [d for d in ref if device_of(base, d) == dev])
-            elif dev == "cpu" and again:  # the base method trained again on the CPU (session 40)
+            elif dev == "cpu" and evaluated_seeds(base + "-cpu"):  # trained again (session 40)
+                again = evaluated_seeds(base + "-cpu")
                 matched = compare(base + "-cpu", again)
-            else:
-                again = []
             if matched is not None:
                 row[2] += "; device-matched (%s): %s" % (dev, matched[2].split(": ", 1)[1])
         if len(abl) < PLANNED["bc-so"] or len(ref) < planned(base):
             row[3] = "not yet (interim: %d of 5 and %d of %d planned seeds evaluated)" % (
                 len(abl), len(ref), planned(base))
-        elif matched is not None and again and len(again) < planned(base + "-cpu"):
+        elif again and len(again) < planned(base + "-cpu"):
             row[3] = "not yet (interim: %s-cpu has %d of %d planned seeds evaluated)" % (
                 base, len(again), planned(base + "-cpu"))
         elif matched is not None:
@@ -722,23 +721,28 @@ def device_rows():
     Where both of keyframe's device-matched comparisons have their planned seeds, the CPU row's
     verdict is device_word's of the two. Interim until the planned seeds of each."""
     cmd = "`TRAIN=cuda METHODS=residual scripts/verdicts.sh eval report`"
-    cpu_cmd = "`TRAIN=cpu METHODS=keyframe scripts/verdicts.sh train eval report`"
-    out = [device_effect_row("residual", "residual-cuda", "residual", cmd),
-           device_effect_row("keyframe", "keyframe", "keyframe-cpu", cpu_cmd)]
+    cpu_cmd = "`TRAIN=cpu METHODS=%s scripts/verdicts.sh train eval report`"
+    out = [device_effect_row("residual", "residual-cuda", "residual", cmd)]
+    out += [device_effect_row(m, m, m + "-cpu", cpu_cmd % m) for m in AGAIN_ON_CPU]
+    endpoint = {"bc-oh": "primary endpoint"}  # the others: the primary endpoint's mean
+    on_cuda = {}
     for m in ("bc-oh", "keyframe"):
         claim = ("Seed 001 tables 7-9, device-matched: residual beats %s, all trained on CUDA "
-                 "(%s)" % (m, "primary endpoint" if m == "bc-oh" else "the primary endpoint's mean"))
-        out.append(residual_vs_row(claim, "residual-cuda", m,
-                                   "pending: residual's CUDA runs are not evaluated yet", cmd,
-                                   device="cuda")[0])
-    claim = ("Seed 001 tables 7-9, device-matched: residual beats keyframe, both trained on this "
-             "CPU (keyframe trained again: keyframe-cpu; the primary endpoint's mean)")
-    row = residual_vs_row(claim, "residual", "keyframe-cpu",
-                          "pending: keyframe's CPU runs are not evaluated yet", cpu_cmd)[0]
-    cuda = out[-1][3]
-    if not row[3].startswith("not yet") and not cuda.startswith("not yet"):
-        row[3] = device_word(("on the CPU", row[3]), ("on CUDA", cuda))
-    out.append(row)
+                 "(%s)" % (m, endpoint.get(m, "the primary endpoint's mean")))
+        on_cuda[m] = residual_vs_row(claim, "residual-cuda", m,
+                                     "pending: residual's CUDA runs are not evaluated yet", cmd,
+                                     device="cuda")[0]
+        out.append(on_cuda[m])
+    for m in AGAIN_ON_CPU:
+        claim = ("Seed 001 tables 7-9, device-matched: residual beats %s, both trained on this "
+                 "CPU (%s trained again: %s-cpu; %s)" % (
+                     m, m, m, endpoint.get(m, "the primary endpoint's mean")))
+        row = residual_vs_row(claim, "residual", m + "-cpu",
+                              "pending: %s's CPU runs are not evaluated yet" % m, cpu_cmd % m)[0]
+        cuda = on_cuda[m][3] if m in on_cuda else "not yet"
+        if not row[3].startswith("not yet") and not cuda.startswith("not yet"):
+            row[3] = device_word(("on the CPU", row[3]), ("on CUDA", cuda))
+        out.append(row)
     return out
 
 
@@ -937,9 +941,9 @@ def runs_section():
     if confounded:
         lines += ["", "Device and method are confounded in residual - %s: residual's runs "
                   "trained on %s, theirs on %s (protocol section 11); what the device does to a "
-                  "method's mean is measured only by the device checks above." % (", ".join(confounded), "/".join(sorted(base)),
-                                                      "/".join(sorted(set().union(
-                                                          *(devices[m] for m in confounded)))))]
+                  "method's mean is measured only by the device checks above." % (
+                      ", ".join(confounded), "/".join(sorted(base)),
+                      "/".join(sorted(set().union(*(devices[m] for m in confounded)))))]
     return lines
 
 
