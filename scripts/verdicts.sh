@@ -64,6 +64,11 @@
 #   WORKERS  evaluation workers       (default: 2)
 #   TRAIN    the runs `eval` evaluates: train (section 7's, default) or cuda (the device
 #            check's runs of protocol section 11, labelled METHOD-cuda; untrained seeds skipped);
+#            cpu: `train` trains METHODS again on this CPU at their section-7 seeds, configs and
+#            data folders into cpu/seedN/METHOD, and `eval` evaluates those in the six
+#            conditions, labelled METHOD-cpu (protocol section 11, session 40: keyframe, whose
+#            section-7 runs trained on CUDA); `secondary` refuses it, as `ablations`, `probe`
+#            and `gpu-list` do;
 #            retrain: `train` retrains METHODS at SEEDS_RETRAIN into retrain/seedN/METHOD and
 #            `secondary` evaluates those on the stop-and-go suites only, labelled
 #            METHOD-retrain (protocol section 11, session 39: residual's stall rate, whose
@@ -129,10 +134,10 @@ SEEDS_MAIN=${SEEDS_MAIN:-$view_main}
 SEEDS_OTHERS=${SEEDS_OTHERS:-$view_others}
 SEEDS_ADDED=${SEEDS_ADDED:-""}
 WORKERS=${WORKERS:-2}
-TRAIN=${TRAIN:-train}  # the runs evaluated: section 7's (train) or the device check's (cuda)
+TRAIN=${TRAIN:-train}  # the runs trained and evaluated: section 7's (train) or section 11's
 case $TRAIN in
-  train | cuda | retrain) ;;
-  *) echo "error: unknown TRAIN '$TRAIN' (train, cuda or retrain)" >&2; exit 2 ;;
+  train | cpu | cuda | retrain) ;;
+  *) echo "error: unknown TRAIN '$TRAIN' (train, cpu, cuda or retrain)" >&2; exit 2 ;;
 esac
 SEEDS_RETRAIN=${SEEDS_RETRAIN:-"0 1 2 3 4"}
 KEEP=${KEEP:-results/$view_name}
@@ -317,12 +322,13 @@ ablations_step() {
   done
 }
 
-run_label() {  # METHOD -> the label of its TRAIN runs: METHOD, or METHOD-cuda, METHOD-retrain
+run_label() {  # METHOD -> the label of its TRAIN runs: METHOD, or METHOD-TRAIN (-cpu, -cuda,
+               # -retrain)
   if [[ $TRAIN == train ]]; then echo "$1"; else echo "$1-$TRAIN"; fi
 }
 
-only_section7() {  # STEP: a one-line stop unless TRAIN is train (or cuda, STEP eval)
-  [[ $TRAIN == train || ( $TRAIN == cuda && $1 == eval ) ]] && return 0
+only_section7() {  # STEP: a one-line stop unless TRAIN is train (or cpu or cuda, STEP eval)
+  [[ $TRAIN == train || ( ( $TRAIN == cpu || $TRAIN == cuda ) && $1 == eval ) ]] && return 0
   echo "error: TRAIN=$TRAIN: $1 is not run for these runs (protocol section 11)" >&2
   return 1
 }
@@ -351,6 +357,10 @@ secondary_eval() {
 # later call. A kept evaluation is never run again, weights or none.
 secondary_step() {
   local label config s m suite skipped=0 ablations=$ABLATION_LABELS
+  if [[ $TRAIN == cpu ]]; then
+    echo "error: TRAIN=cpu: those runs are evaluated in the six conditions only (protocol section 11, session 40)" >&2
+    return 1
+  fi
   [[ $TRAIN == train ]] || ablations=""  # retrain (cuda): their stop-and-go runs alone
   for label in $ablations; do
     config=$(ablation_config "$label") || return
@@ -409,7 +419,7 @@ gpu_entry() {  # NAME METHOD CONFIG BASE SEED: one line of GPU_DIR/runs.txt.tmp,
 
 gpu_list_step() {
   local s m label methods=""
-  [[ $TRAIN != retrain ]] || { echo "error: TRAIN=retrain: its runs train on this machine's CPU (protocol section 11, session 39), not on a lent GPU" >&2; return 1; }
+  [[ $TRAIN != retrain && $TRAIN != cpu ]] || { echo "error: TRAIN=$TRAIN: its runs train on this machine's CPU (protocol section 11, sessions 39-40), not on a lent GPU" >&2; return 1; }
   if [[ $VIEW != bev ]]; then
     echo "error: gpu-list lists the BEV's runs only: a camera data folder (~300 MB) does not fit a lent machine's 64 MiB carry" >&2
     return 1
@@ -466,12 +476,12 @@ eval_step() {
       mkdir -p "$OUT/configs"
       scripts/config_variant.py "$config" "$held_out" sense.camera.weather=held-out >&2 || return
     fi
-    # TRAIN=cuda: the device check's runs (section 11), labelled METHOD-cuda.
+    # TRAIN=cuda (cpu): section 11's runs, labelled METHOD-cuda (METHOD-cpu).
     label=$(run_label "$m")
     for s in $(seeds_of "$m"); do
       run=$OUT/$TRAIN/seed$s/$m
       if [[ $TRAIN != train ]] && ! has_weights "$run"; then
-        echo "$run: no weights here (not trained on this machine), skipped" >&2
+        echo "$run: no weights here (not trained yet, or not on this machine), skipped" >&2
         continue
       fi
       for c in $CONDITIONS; do
@@ -516,6 +526,16 @@ report_step() {
           | sed -n '/^## .* vs /,$p' || true
       done
     fi
+    # Section 11 (session 40): a method trained again on the CPU against residual (CPU) and
+    # against its own section-7 runs.
+    for m in bc-oh keyframe dagger bc-so hd fca; do
+      [[ " ${dirs[*]} " == *"/eval/$m-cpu/"* ]] || continue
+      for a in residual "$m"; do
+        echo
+        "$CD" report "${dirs[@]}" --metrics outcomes --compare "$a" "$m-cpu" \
+          | sed -n '/^## .* vs /,$p' || true
+      done
+    done
     echo
     "$CD" report "${dirs[@]}" --metrics outcomes --power | sed -n '/^## Power/,$p'
   } > "$f.tmp"

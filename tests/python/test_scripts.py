@@ -620,6 +620,52 @@ class VerdictsAblationsTest(VerdictsStandIn):
             self.assertIn(msg, r.stderr)
         self.assertEqual(len([c for c in self.calls() if c[0] in ("train", "eval")]), 6)
 
+    def test_a_method_trained_again_on_the_cpu_is_evaluated_in_the_six_conditions_apart(self):
+        # Protocol section 11 (session 40): TRAIN=cpu trains keyframe into cpu/seedN/keyframe on
+        # its section-7 seeds' data folders, eval evaluates those labelled keyframe-cpu in the
+        # six conditions, report compares them with residual and with keyframe's own runs.
+        out, keep = os.path.join(self.dir, "out"), os.path.join(self.dir, "keep")
+        env = dict(os.environ, CD=self.cd, OUT=out, KEEP=keep, CONFIGS=self.configs,
+                   TRAIN="cpu", METHODS="keyframe", SEEDS_MAIN="0 1", SEEDS_OTHERS="0",
+                   ABLATION_LABELS="two-stream-keyframe")
+        script = os.path.join(SOURCE, "scripts", "verdicts.sh")
+        r = subprocess.run([script, "train", "eval"], cwd=SOURCE, env=env, capture_output=True,
+                           text=True, timeout=120)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        trains = [c for c in self.calls() if c[0] == "train"]
+        self.assertEqual([(c[c.index("--out") + 1], c[c.index("--method") + 1],
+                           c[c.index("--data") + 1], c[c.index("--seed") + 1]) for c in trains],
+                         [(os.path.join(out, "cpu", "seed%d" % s, "keyframe"), "keyframe",
+                           os.path.join(out, "data", "hold0.0", "D%d" % (s + 1)), str(s))
+                          for s in (0, 1)])
+        evals = [c for c in self.calls() if c[0] == "eval"]
+        self.assertEqual(sorted(c[c.index("--out") + 1] for c in evals),
+                         sorted(os.path.join(out, "eval", "keyframe-cpu", "seed%d" % s, name)
+                                for s in (0, 1) for name in ("a-regular", "a-dense",
+                                                             "a-regular-shifted", "a-dense-shifted",
+                                                             "b-regular", "b-dense")))
+        for c in evals:
+            self.assertEqual(c[c.index("--label") + 1], "keyframe-cpu")
+            self.assertIn(c[c.index("--checkpoint") + 1],
+                          [os.path.join(out, "cpu", "seed%d" % s, "keyframe") for s in (0, 1)])
+        for d in ("residual/seed0/a-regular", "keyframe/seed0/a-regular"):
+            os.makedirs(os.path.join(keep, "eval", d))
+            with open(os.path.join(keep, "eval", d, "results.json"), "w") as f:
+                f.write("{}")
+        r = subprocess.run([script, "report"], cwd=SOURCE, env=env, capture_output=True,
+                           text=True, timeout=120)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        compared = sorted(tuple(c[c.index("--compare") + 1:c.index("--compare") + 3])
+                          for c in self.calls() if c[0] == "report" and "--compare" in c and
+                          "keyframe-cpu" in c)
+        self.assertEqual(compared, [("keyframe", "keyframe-cpu"), ("residual", "keyframe-cpu")])
+        for step in ("secondary", "ablations", "probe", "gpu-list"):
+            r = subprocess.run([script, step], cwd=SOURCE, env=env, capture_output=True,
+                               text=True, timeout=120)
+            self.assertNotEqual(r.returncode, 0, step)
+            self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+            self.assertIn("TRAIN=cpu", r.stderr)
+
     def test_the_device_check_evaluates_the_cuda_runs_under_their_own_label(self):
         out = os.path.join(self.dir, "out")
         os.makedirs(os.path.join(out, "cuda", "seed0", "residual"))
@@ -631,7 +677,7 @@ class VerdictsAblationsTest(VerdictsStandIn):
         r = subprocess.run([os.path.join(SOURCE, "scripts", "verdicts.sh"), "eval"], cwd=SOURCE,
                            env=env, capture_output=True, text=True, timeout=120)
         self.assertEqual(r.returncode, 0, r.stderr)
-        self.assertIn(os.path.join(out, "cuda", "seed1", "residual") + ": no weights here (not trained on this machine), skipped",
+        self.assertIn(os.path.join(out, "cuda", "seed1", "residual") + ": no weights here (not trained yet, or not on this machine), skipped",
                       r.stderr)
         evals = [c for c in self.calls() if c[0] == "eval"]
         self.assertEqual(sorted(c[c.index("--out") + 1].split("/")[-1] for c in evals),
