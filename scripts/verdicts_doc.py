@@ -530,6 +530,7 @@ def power_row():
 
 
 BASELINES = ["bc-oh", "keyframe", "dagger", "bc-so", "hd", "fca"]  # section 3, against residual
+ABLATION_LABELS = ["two-stream-bc-oh", "two-stream-keyframe", "residual-b2", "residual-b4"]
 AGAIN_ON_CPU = ["keyframe"]  # section 11 (session 40): trained again on the CPU, METHOD-cpu
 
 
@@ -832,14 +833,17 @@ def run_columns(ck, seed):
 def compute_line():
     """The training compute of the kept run records, by device: the sum of their epochs'
     seconds (checkpoint.json's metrics), per group of runs."""
-    groups = [("section 7", "train", "verdicts"), ("the device check", "cuda", "verdicts"),
+    groups = [("section 7", "train", "verdicts"), ("the ablations", "train", "verdicts"),
+              ("the device check", "cuda", "verdicts"),
               ("trained again on the CPU", "cpu", "verdicts"),
               ("superseded", "superseded", "verdicts"), ("retrains", "retrain", "verdicts"),
               ("free mode", "train", "verdicts-free")]
     parts = []
     for name, kind, results in groups:
         by_device = {}
-        for _, _, _, ck in run_records(kind, results):
+        for _, method, _, ck in run_records(kind, results):
+            if kind == "train" and (method in ABLATION_LABELS) != (name == "the ablations"):
+                continue  # section 2's ablations train beside section 7's runs, counted apart
             t = by_device.setdefault(ck.get("runtime", {}).get("device", "?"), [0.0, 0])
             t[0] += sum(e["seconds"] for e in ck.get("metrics", []))
             t[1] += 1
@@ -870,8 +874,8 @@ def runs_section():
              ", ".join(tuned) + ". The choices: `results/verdicts/tuning.md` "
              "(`scripts/verdicts.sh choose`).",
              "- **Training** (section 7; residual-cuda: the device check of section 11; "
-             "keyframe-cpu: keyframe trained again on this CPU, section 11, session 40), the kept "
-             "runs:",
+             "keyframe-cpu: keyframe trained again on this CPU, section 11, session 40; then "
+             "section 2's ablations: %s), the kept runs:" % ", ".join(ABLATION_LABELS),
              ""] + RUNS_HEAD
     runs = []
     for kind in ("train", "cuda", "cpu"):

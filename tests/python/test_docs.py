@@ -218,10 +218,15 @@ class Docs(unittest.TestCase):
                              **rec)
             write_run_record(tmp, "residual", 3, "cpu", kind="retrain", metrics=[{"seconds": 720}],
                              **rec)
+            write_run_record(tmp, "keyframe", 1, "cpu", kind="cpu", metrics=[{"seconds": 180}],
+                             **rec)
+            write_run_record(tmp, "residual-b2", 0, "cpu", metrics=[{"seconds": 540}], **rec)
             line = doc.compute_line()
             self.assertTrue(line.endswith("section 7: cpu 1.00 h over 2 runs, cuda 0.10 h over 1 "
-                                          "run; the device check: cuda 0.01 h over 1 run; "
-                                          "retrains: cpu 0.20 h over 1 run."), line)
+                                          "run; the ablations: cpu 0.15 h over 1 run; the device "
+                                          "check: cuda 0.01 h over 1 run; trained again on the "
+                                          "CPU: cpu 0.05 h over 1 run; retrains: cpu 0.20 h over "
+                                          "1 run."), line)
             lines = doc.runs_section()
             at = [i for i, x in enumerate(lines) if x.startswith("- **Retrains**")]
             self.assertEqual(len(at), 1)  # the retrain's table: its one run, data D2 (odd seed)
