@@ -322,6 +322,20 @@ def table10_row():
             verdict or "not yet", cmd]
 
 
+# Section 2's ablations (protocol section 11): claim, paper figure, label, base method, and
+# whether the claim is that the ablation is the better.
+ABLATIONS = (
+    ("Seed 001 table 11: two streams alone do not help bc-oh (two-stream bc-oh below "
+     "bc-oh)", "23.7 against 34.1 % success", "two-stream-bc-oh", "bc-oh", False),
+    ("Seed 001 table 11: two streams alone do not help keyframe (two-stream keyframe "
+     "below keyframe)", "38.7 against 41.9 % success", "two-stream-keyframe", "keyframe",
+     False),
+    ("Seed 001 B.5: residual with 2 memory branches beats 1", "52.6 against 52.0 %",
+     "residual-b2", "residual", True),
+    ("Seed 001 B.5: residual with 4 memory branches falls below 1", "50.7 against 52.0 %",
+     "residual-b4", "residual", False))
+
+
 def ablation_rows():
     """Tables 11 and B.5 (protocol section 11): each ablation against its base method on
     verdicts-town-a-dense, by report --compare (success rate), interim until the ablation's
@@ -333,16 +347,7 @@ def ablation_rows():
     marked device-confounded."""
     cmd = "scripts/verdicts.sh secondary"
     out = []
-    for claim, paper, label, base, ablation_better in (
-            ("Seed 001 table 11: two streams alone do not help bc-oh (two-stream bc-oh below "
-             "bc-oh)", "23.7 against 34.1 % success", "two-stream-bc-oh", "bc-oh", False),
-            ("Seed 001 table 11: two streams alone do not help keyframe (two-stream keyframe "
-             "below keyframe)", "38.7 against 41.9 % success", "two-stream-keyframe", "keyframe",
-             False),
-            ("Seed 001 B.5: residual with 2 memory branches beats 1", "52.6 against 52.0 %",
-             "residual-b2", "residual", True),
-            ("Seed 001 B.5: residual with 4 memory branches falls below 1", "50.7 against 52.0 %",
-             "residual-b4", "residual", False)):
+    for claim, paper, label, base, ablation_better in ABLATIONS:
         root = os.path.join(ROOT, "results", "verdicts", "eval")
         abl = [d for d in sorted(glob.glob(os.path.join(root, label, "seed*")))
                if os.path.exists(os.path.join(d, "a-dense", "results.json"))]
@@ -530,7 +535,7 @@ def power_row():
 
 
 BASELINES = ["bc-oh", "keyframe", "dagger", "bc-so", "hd", "fca"]  # section 3, against residual
-ABLATION_LABELS = ["two-stream-bc-oh", "two-stream-keyframe", "residual-b2", "residual-b4"]
+ABLATION_LABELS = [a[2] for a in ABLATIONS]  # section 2's ablations (table 11, B.5)
 AGAIN_ON_CPU = ["keyframe"]  # section 11 (session 40): trained again on the CPU, METHOD-cpu
 
 

@@ -583,6 +583,16 @@ class VerdictsAblationsTest(VerdictsStandIn):
                           % (out, run, out, folder), r.stderr)
         self.assertIn("secondary: 5 evaluation(s) skipped for want of weights", r.stderr)
 
+    def assert_refused_in_one_line(self, env, steps, word):
+        """Each of STEPS of scripts/verdicts.sh, run alone with ENV, stops non-zero with one
+        stderr line holding WORD."""
+        for step in steps:
+            r = subprocess.run([os.path.join(SOURCE, "scripts", "verdicts.sh"), step],
+                               cwd=SOURCE, env=env, capture_output=True, text=True, timeout=120)
+            self.assertNotEqual(r.returncode, 0, step)
+            self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
+            self.assertIn(word, r.stderr)
+
     def test_retrains_train_apart_and_are_evaluated_on_the_stop_and_go_suites_only(self):
         # Protocol section 11 (session 39): TRAIN=retrain trains into retrain/seedN/METHOD on
         # the seed's data folder, and secondary evaluates those alone, labelled METHOD-retrain.
@@ -606,12 +616,7 @@ class VerdictsAblationsTest(VerdictsStandIn):
                          [(os.path.join(out, "eval", "residual-retrain", "seed%d" % s, suite),
                            "residual-retrain", os.path.join(out, "retrain", "seed%d" % s, "residual"))
                           for s in (0, 1) for suite in ("a-stopgo", "b-stopgo")])
-        for step in ("eval", "ablations", "probe", "gpu-list"):
-            r = subprocess.run([script, step], cwd=SOURCE, env=env, capture_output=True,
-                               text=True, timeout=120)
-            self.assertNotEqual(r.returncode, 0, step)
-            self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
-            self.assertIn("TRAIN=retrain", r.stderr)
+        self.assert_refused_in_one_line(env, ("eval", "ablations", "probe", "gpu-list"), "TRAIN=retrain")
         for train, step, code, msg in (("bogus", "report", 2, "unknown TRAIN 'bogus'"),
                                        ("cuda", "train", 1, "TRAIN=cuda runs train on a lent GPU")):
             r = subprocess.run([script, step], cwd=SOURCE, env=dict(env, TRAIN=train),
@@ -659,12 +664,7 @@ class VerdictsAblationsTest(VerdictsStandIn):
                           for c in self.calls() if c[0] == "report" and "--compare" in c and
                           "keyframe-cpu" in c)
         self.assertEqual(compared, [("keyframe", "keyframe-cpu"), ("residual", "keyframe-cpu")])
-        for step in ("secondary", "ablations", "probe", "gpu-list"):
-            r = subprocess.run([script, step], cwd=SOURCE, env=env, capture_output=True,
-                               text=True, timeout=120)
-            self.assertNotEqual(r.returncode, 0, step)
-            self.assertEqual(len(r.stderr.strip().splitlines()), 1, r.stderr)
-            self.assertIn("TRAIN=cpu", r.stderr)
+        self.assert_refused_in_one_line(env, ("secondary", "ablations", "probe", "gpu-list"), "TRAIN=cpu")
 
     def test_the_device_check_evaluates_the_cuda_runs_under_their_own_label(self):
         out = os.path.join(self.dir, "out")
