@@ -411,15 +411,17 @@ def device_word(*named):
         "%s: %s" % nw for nw in named)
 
 
-def residual_vs_row(claim, label, m, pending, pending_cmd, device=None):
+def residual_vs_row(claim, label, m, pending, pending_cmd, device=None, results="verdicts",
+                    plan=None, cmd="scripts/verdicts.sh report"):
     """Tables 7-9's row of residual's runs LABEL (residual, or the device check's
     residual-cuda) against method M: report --compare over the six conditions, on the seeds
-    evaluated in all six (with DEVICE, only M's seeds trained on it: the device-matched rows);
-    interim, with no verdict, until every planned seed of both is in. Returns the row and the
-    two lists of seed folders, or the pending row and None."""
-    cmd = "scripts/verdicts.sh report"
-    res, other = evaluated_seeds(label), evaluated_seeds(m)
-    planned_other = planned(m)
+    evaluated in all six under results/RESULTS (with DEVICE, only M's seeds trained on it: the
+    device-matched rows); interim, with no verdict, until every planned seed of both is in
+    (PLAN: label -> planned seeds, `planned` by default). CMD made the row. Returns the row and
+    the two lists of seed folders, or the pending row and None."""
+    plan = plan or planned
+    res, other = evaluated_seeds(label, results), evaluated_seeds(m, results)
+    planned_res, planned_other = plan(label), plan(m)
     if device is not None:
         # Section 11 (session 35): M's seeds trained elsewhere leave this comparison and its plan.
         kept = [d for d in other if device_of(m, d) == device]
@@ -430,9 +432,9 @@ def residual_vs_row(claim, label, m, pending, pending_cmd, device=None):
         return [claim, paper, pending, "not yet", pending_cmd], None
     row = compare_row(claim, paper, seed_dirs(res + other), label, m, "success_rate", True, cmd)
     row[2] += " (%d x %d seeds)" % (len(res), len(other))
-    if len(res) < planned(label) or len(other) < planned_other:
+    if len(res) < planned_res or len(other) < planned_other:
         row[3] = "not yet (interim: %d of %d and %d of %d planned seeds evaluated)" % (
-            len(res), planned(label), len(other), planned_other)
+            len(res), planned_res, len(other), planned_other)
     return row, (res, other)
 
 
@@ -659,24 +661,11 @@ def free_rows():
     """Section 2's free-mode endpoint (secondary; `MODE=free scripts/verdicts.sh`): residual
     against bc-oh, keyframe and dagger on the mean success over the six conditions with the
     agents steering, on the seeds evaluated in all six; interim until 5 seeds of each."""
-    out = []
-    res = evaluated_seeds("residual", "verdicts-free")
-    for m in ("bc-oh", "keyframe", "dagger"):
-        claim = "Seed 001 tables 7-9 in free mode (the agents steer; secondary): residual beats %s" % m
-        paper = "mean success %.1f against %.1f %%" % (paper_success("residual"), paper_success(m))
-        other = evaluated_seeds(m, "verdicts-free")
-        if not res or not other:
-            out.append([claim, paper, "pending: the free-mode runs are not evaluated yet",
-                        "not yet", "`%s`" % FREE_CMD])
-            continue
-        row = compare_row(claim, paper, seed_dirs(res + other), "residual", m, "success_rate",
-                          True, FREE_CMD)
-        row[2] += " (%d x %d seeds)" % (len(res), len(other))
-        if min(len(res), len(other)) < FREE_PLANNED:
-            row[3] = "not yet (interim: %d and %d of %d planned seeds evaluated)" % (
-                len(res), len(other), FREE_PLANNED)
-        out.append(row)
-    return out
+    return [residual_vs_row(
+        "Seed 001 tables 7-9 in free mode (the agents steer; secondary): residual beats %s" % m,
+        "residual", m, "pending: the free-mode runs are not evaluated yet", "`%s`" % FREE_CMD,
+        results="verdicts-free", plan=lambda label: FREE_PLANNED, cmd=FREE_CMD)[0]
+        for m in ("bc-oh", "keyframe", "dagger")]
 
 
 def primary_endpoint(seed_dir):

@@ -251,7 +251,8 @@ class Docs(unittest.TestCase):
             self.assertIn("in free mode", rows[0][0])
             self.assertIn("residual beats bc-oh", rows[0][0])
             self.assertIn("(3 x 2 seeds)", rows[0][2])
-            self.assertEqual(rows[0][3], "not yet (interim: 3 and 2 of 5 planned seeds evaluated)")
+            self.assertEqual(rows[0][3], "not yet (interim: 3 of 5 and 2 of 5 planned seeds "
+                                         "evaluated)")
             a = sum(success["residual", s, c] for s in (0, 1, 2) for c in CONDITIONS) / 18
             b = sum(success["bc-oh", s, c] for s in (0, 1) for c in CONDITIONS) / 12
             self.assertIn("over 6 conditions: %+.1f [" % (100 * (a - b)), rows[0][2])
