@@ -567,10 +567,17 @@ def primary_rows():
                 row[3] = ("not yet (interim: residual's CUDA runs have %d of the %d seeds of "
                           "%s; protocol section 11)" % (cuda, len(seeds[1]), m))
                 if m in AGAIN_ON_CPU:  # session 40: or the device-matched row on the CPU
-                    row[3] = row[3][:-1] + ("; or the device-matched row on the CPU below, with "
-                                            "%d of %s-cpu's %d seeds)" % (
-                                                len(evaluated_seeds(m + "-cpu")), m,
-                                                planned(m + "-cpu")))
+                    matched = cpu_matched_row(m)
+                    if matched[3].startswith("not yet"):
+                        row[3] = row[3][:-1] + (
+                            "; or the device-matched row on the CPU below, with %d of "
+                            "%s-cpu's %d seeds)" % (len(evaluated_seeds(m + "-cpu")), m,
+                                                    planned(m + "-cpu")))
+                    else:  # it decides the row (section 11, session 40 (a))
+                        row[2] += "; device-matched on the CPU, residual - %s-cpu: %s" % (
+                            m, matched[2].split(": ", 1)[1])
+                        row[3] = "%s (by the device-matched comparison on the CPU; protocol " \
+                                 "section 11)" % matched[3]
         out.append(row)
     return out
 
@@ -621,7 +628,9 @@ def failure_rows(primary):
     """Section 2's secondary endpoints copycat_rate and collision_rate: residual's rate against
     each baseline's over the six conditions (report --compare, lower is better), on the seeds
     of the primary rows PRIMARY (primary_rows' output, in BASELINES' order); a baseline whose
-    primary row is interim is "not yet" here too."""
+    primary row is interim is "not yet" here too. A baseline whose seeds trained on other
+    devices than residual's has them named (section 11, session 40: keyframe's CUDA runs stay
+    its runs here)."""
     interim = {m for m, row in zip(BASELINES, primary) if row[3].startswith("not yet")}
     res = evaluated_seeds("residual")
     mean_collision = {m: sum(c for c, _ in PAPER_FAILURES[m]) / len(PAPER_FAILURES[m])
@@ -643,9 +652,11 @@ def failure_rows(primary):
                 words.setdefault("not yet", []).append(m)
                 continue
             over = compare_over(seed_dirs(res + other), "residual", m, metric)[0]
-            parts.append("%s %s [%s, %s] (%d x %d seeds)" % (
+            devices = devices_of(m, other)
+            parts.append("%s %s [%s, %s] (%d x %d seeds%s)" % (
                 m, pts(over["difference"]), pts(over["lo"]), pts(over["hi"]), len(res),
-                len(other)))
+                len(other), "" if set(devices) == set(devices_of("residual", res)) else
+                "; " + on_devices(m, devices)))
             words.setdefault("not yet" if m in interim else claim_word(over["verdict"]),
                              []).append(m)
         ours = "residual - baseline, %s in points: %s" % (metric, "; ".join(parts))
@@ -715,30 +726,38 @@ def device_rows():
     residual (CPU) - keyframe-cpu, all on the CPU, by report --compare as the primary rows.
     Where both of keyframe's device-matched comparisons have their planned seeds, the CPU row's
     verdict is device_word's of the two. Interim until the planned seeds of each."""
-    cmd = "`TRAIN=cuda METHODS=residual scripts/verdicts.sh eval report`"
-    cpu_cmd = "`TRAIN=cpu METHODS=%s scripts/verdicts.sh train eval report`"
-    out = [device_effect_row("residual", "residual-cuda", "residual", cmd)]
-    out += [device_effect_row(m, m, m + "-cpu", cpu_cmd % m) for m in AGAIN_ON_CPU]
-    endpoint = {"bc-oh": "primary endpoint"}  # the others: the primary endpoint's mean
-    on_cuda = {}
-    for m in ("bc-oh", "keyframe"):
-        claim = ("Seed 001 tables 7-9, device-matched: residual beats %s, all trained on CUDA "
-                 "(%s)" % (m, endpoint.get(m, "the primary endpoint's mean")))
-        on_cuda[m] = residual_vs_row(claim, "residual-cuda", m,
-                                     "pending: residual's CUDA runs are not evaluated yet", cmd,
-                                     device="cuda")[0]
-        out.append(on_cuda[m])
-    for m in AGAIN_ON_CPU:
-        claim = ("Seed 001 tables 7-9, device-matched: residual beats %s, both trained on this "
-                 "CPU (%s trained again: %s-cpu; %s)" % (
-                     m, m, m, endpoint.get(m, "the primary endpoint's mean")))
-        row = residual_vs_row(claim, "residual", m + "-cpu",
-                              "pending: %s's CPU runs are not evaluated yet" % m, cpu_cmd % m)[0]
-        cuda = on_cuda[m][3] if m in on_cuda else "not yet"
-        if not row[3].startswith("not yet") and not cuda.startswith("not yet"):
-            row[3] = device_word(("on the CPU", row[3]), ("on CUDA", cuda))
-        out.append(row)
-    return out
+    out = [device_effect_row("residual", "residual-cuda", "residual", CUDA_CMD)]
+    out += [device_effect_row(m, m, m + "-cpu", CPU_CMD % m) for m in AGAIN_ON_CPU]
+    return out + [cuda_matched_row(m) for m in ("bc-oh", "keyframe")] + [
+        cpu_matched_row(m) for m in AGAIN_ON_CPU]
+
+
+ENDPOINT = {"bc-oh": "primary endpoint"}  # the others: the primary endpoint's mean
+CUDA_CMD = "`TRAIN=cuda METHODS=residual scripts/verdicts.sh eval report`"
+CPU_CMD = "`TRAIN=cpu METHODS=%s scripts/verdicts.sh train eval report`"
+
+
+def cuda_matched_row(m):
+    """Section 11 (session 30): residual (CUDA) - M over M's CUDA seeds, all on CUDA."""
+    claim = ("Seed 001 tables 7-9, device-matched: residual beats %s, all trained on CUDA "
+             "(%s)" % (m, ENDPOINT.get(m, "the primary endpoint's mean")))
+    return residual_vs_row(claim, "residual-cuda", m,
+                           "pending: residual's CUDA runs are not evaluated yet", CUDA_CMD,
+                           device="cuda")[0]
+
+
+def cpu_matched_row(m):
+    """Section 11 (session 40): residual (CPU) - M-cpu, M trained again on this CPU. Where the
+    CUDA-matched row has its planned seeds too, the verdict is device_word's of the two."""
+    claim = ("Seed 001 tables 7-9, device-matched: residual beats %s, both trained on this "
+             "CPU (%s trained again: %s-cpu; %s)" % (
+                 m, m, m, ENDPOINT.get(m, "the primary endpoint's mean")))
+    row = residual_vs_row(claim, "residual", m + "-cpu",
+                          "pending: %s's CPU runs are not evaluated yet" % m, CPU_CMD % m)[0]
+    cuda = cuda_matched_row(m)[3]
+    if not row[3].startswith("not yet") and not cuda.startswith("not yet"):
+        row[3] = device_word(("on the CPU", row[3]), ("on CUDA", cuda))
+    return row
 
 
 def rows():

@@ -186,6 +186,9 @@ class Docs(unittest.TestCase):
         try:
             eps = copy_kept_seeds(tmp, ("residual",), (0, 1), src_method="dagger")
             eps.update(copy_kept_seeds(tmp, ("bc-oh",), (0, 1)))
+            for s in (0, 1):  # bc-oh trained on another device than residual: named
+                write_run_record(tmp, "residual", s, "cpu")
+                write_run_record(tmp, "bc-oh", s, "cuda")
             doc = load_verdicts_doc(tmp)
             rows = doc.failure_rows(doc.primary_rows())
             for row, classes in zip(rows, ({"stuck", "restart_stall", "stopped_free"},
@@ -195,6 +198,7 @@ class Docs(unittest.TestCase):
                                for s in (0, 1) for c in CONDITIONS) / 12
                 self.assertIn("bc-oh %+.1f [" % (100 * (rate("residual") - rate("bc-oh"))),
                               row[2])
+                self.assertIn("(2 x 2 seeds; bc-oh on cuda (seeds 0-1))", row[2])
                 self.assertIn("keyframe pending", row[2])
                 self.assertEqual(row[3], "not yet on bc-oh, keyframe, dagger, bc-so, hd, fca")
             self.assertIn("copycat", rows[0][0])
@@ -369,7 +373,21 @@ class Docs(unittest.TestCase):
                        sum(dense["keyframe-cpu", s] for s in range(10)) / 10))), matched)
             self.assertTrue(matched.endswith("(5 x 10 seeds)"), matched)
             self.assertIn("; device-matched: ", abl[3])
-            # With keyframe-cpu short of its ten seeds, both wait.
+            # residual's CUDA runs short of keyframe's seeds: the CPU row alone decides keyframe's
+            # primary row (protocol section 11, session 40 (a)).
+            for s in (8, 9):
+                shutil.rmtree(os.path.join(tmp, "results", "verdicts", "eval", "residual-cuda",
+                                           "seed%d" % s))
+            doc = load_verdicts_doc(tmp)
+            primary = doc.primary_rows()
+            key = primary[1]
+            self.assertIn("residual beats keyframe", key[0])
+            self.assertEqual(key[3], "%s (by the device-matched comparison on the CPU; protocol "
+                                     "section 11)" % alone)
+            self.assertIn("; device-matched on the CPU, residual - keyframe-cpu: %+.1f [" % (
+                sum(endpoint["residual", s] - endpoint["keyframe-cpu", s] for s in range(10)) / 10),
+                key[2])
+            # With keyframe-cpu short of its ten seeds, all three wait.
             for s in range(3, 10):
                 shutil.rmtree(os.path.join(tmp, "results", "verdicts", "eval", "keyframe-cpu",
                                            "seed%d" % s))
@@ -378,6 +396,10 @@ class Docs(unittest.TestCase):
                              "not yet (interim: keyframe-cpu has 3 of 10 planned seeds evaluated)")
             self.assertEqual(doc.device_rows()[-1][3],
                              "not yet (interim: 10 of 10 and 3 of 10 planned seeds evaluated)")
+            self.assertEqual(doc.primary_rows()[1][3],
+                             "not yet (interim: residual's CUDA runs have 8 of the 10 seeds of "
+                             "keyframe; protocol section 11; or the device-matched row on the "
+                             "CPU below, with 3 of keyframe-cpu's 10 seeds)")
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
