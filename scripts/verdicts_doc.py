@@ -560,24 +560,25 @@ def primary_rows():
                 row[2] += "; devices mixed: " + on_devices(m, by_device)
             # Section 11 (session 30): the device-matched comparison becomes the primary one
             # once residual's CUDA runs have the other's seeds (all trained on CUDA: session
-            # 35); until then both wait.
+            # 35); until then both wait. Session 40 (a): for a method trained again on the CPU,
+            # the device-matched row on the CPU decides once its seeds are in (with both
+            # device-matched rows complete, its verdict is device_word's of the two).
             cuda = len(evaluated_seeds("residual-cuda"))
-            if m in ("bc-oh", "keyframe") and set(by_device) == {"cuda"} and \
-                    cuda < len(seeds[1]) and not row[3].startswith("not yet"):
+            confounded = m in ("bc-oh", "keyframe") and set(by_device) == {"cuda"} and \
+                not row[3].startswith("not yet")
+            matched = cpu_matched_row(m) if confounded and m in AGAIN_ON_CPU else None
+            if matched is not None and not matched[3].startswith("not yet"):
+                row[2] += "; device-matched on the CPU, residual - %s-cpu: %s" % (
+                    m, matched[2].split(": ", 1)[1])
+                row[3] = "%s (by the device-matched comparison on the CPU; protocol section " \
+                         "11)" % matched[3]
+            elif confounded and cuda < len(seeds[1]):
                 row[3] = ("not yet (interim: residual's CUDA runs have %d of the %d seeds of "
                           "%s; protocol section 11)" % (cuda, len(seeds[1]), m))
-                if m in AGAIN_ON_CPU:  # session 40: or the device-matched row on the CPU
-                    matched = cpu_matched_row(m)
-                    if matched[3].startswith("not yet"):
-                        row[3] = row[3][:-1] + (
-                            "; or the device-matched row on the CPU below, with %d of "
-                            "%s-cpu's %d seeds)" % (len(evaluated_seeds(m + "-cpu")), m,
-                                                    planned(m + "-cpu")))
-                    else:  # it decides the row (section 11, session 40 (a))
-                        row[2] += "; device-matched on the CPU, residual - %s-cpu: %s" % (
-                            m, matched[2].split(": ", 1)[1])
-                        row[3] = "%s (by the device-matched comparison on the CPU; protocol " \
-                                 "section 11)" % matched[3]
+                if matched is not None:
+                    row[3] = row[3][:-1] + (
+                        "; or the device-matched row on the CPU below, with %d of %s-cpu's %d "
+                        "seeds)" % (len(evaluated_seeds(m + "-cpu")), m, planned(m + "-cpu")))
         out.append(row)
     return out
 

@@ -363,6 +363,9 @@ class Docs(unittest.TestCase):
             # Both device-matched comparisons have their seeds: one verdict from the two.
             alone = doc.residual_vs_row("x", "residual", "keyframe-cpu", "", "")[0][3]
             self.assertEqual(cpu[3], doc.device_word(("on the CPU", alone), ("on CUDA", cuda[3])))
+            # ... and it decides keyframe's primary row (protocol section 11, session 40 (a)).
+            self.assertEqual(doc.primary_rows()[1][3], "%s (by the device-matched comparison on "
+                                                       "the CPU; protocol section 11)" % cpu[3])
             # Table 11: two-stream keyframe against keyframe-cpu, the device-matched comparison.
             abl = doc.ablation_rows()[1]
             main, matched = abl[2].split("; device-matched (cpu): ")
