@@ -357,10 +357,7 @@ secondary_eval() {
 # later call. A kept evaluation is never run again, weights or none.
 secondary_step() {
   local label config s m suite skipped=0 ablations=$ABLATION_LABELS
-  if [[ $TRAIN == cpu ]]; then
-    echo "error: TRAIN=cpu: those runs are evaluated in the six conditions only (protocol section 11, session 40)" >&2
-    return 1
-  fi
+  [[ $TRAIN != cpu ]] || { only_section7 secondary; return; }  # the six conditions only
   [[ $TRAIN == train ]] || ablations=""  # retrain (cuda): their stop-and-go runs alone
   for label in $ablations; do
     config=$(ablation_config "$label") || return
@@ -498,8 +495,10 @@ eval_step() {
   done
 }
 
+BASELINES="bc-oh keyframe dagger bc-so hd fca"  # section 3's methods against residual
+
 report_step() {
-  local dirs=() m f=$OUT/primary.md
+  local dirs=() m a f=$OUT/primary.md
   # The primary endpoint reads the six conditions' folders of section 3's methods alone
   # (section 2), never the secondary step's stop-and-go or ablation runs.
   mapfile -t dirs < <(find "$KEEP/eval" -name results.json -printf '%h\n' 2>/dev/null |
@@ -507,34 +506,28 @@ report_step() {
                       grep -vE "/eval/($(cut -d'|' -f1 <<<"$ABLATIONS" | xargs | tr ' ' '|'))/" | sort)
   [[ ${#dirs[@]} -gt 0 ]] || { echo "error: nothing evaluated yet in $KEEP/eval" >&2; return 1; }
   mkdir -p "$OUT"
+  compare_section() {  # A B: report --compare's section of A - B over the six conditions
+    echo
+    "$CD" report "${dirs[@]}" --metrics outcomes --compare "$1" "$2" | sed -n '/^## .* vs /,$p' || true
+  }
   {
     echo "# ${view_title^}' primary endpoint (docs/protocol.md section 2), from the kept evaluations"
     echo
     "$CD" report "${dirs[@]}" --metrics outcomes
-    for m in bc-oh keyframe dagger bc-so hd fca; do
+    for m in $BASELINES; do
       [[ " ${dirs[*]} " == *"/eval/$m/"* ]] || continue  # not evaluated (yet)
-      echo
-      "$CD" report "${dirs[@]}" --metrics outcomes --compare residual "$m" \
-        | sed -n '/^## .* vs /,$p' || true
+      compare_section residual "$m"
     done
     # The device check (section 11): residual trained on CUDA against the CUDA-trained
     # methods, and against residual trained on the CPU.
     if [[ " ${dirs[*]} " == *"/eval/residual-cuda/"* ]]; then  # (not grep -q: pipefail and SIGPIPE)
-      for m in bc-oh keyframe residual; do
-        echo
-        "$CD" report "${dirs[@]}" --metrics outcomes --compare residual-cuda "$m" \
-          | sed -n '/^## .* vs /,$p' || true
-      done
+      for m in bc-oh keyframe residual; do compare_section residual-cuda "$m"; done
     fi
     # Section 11 (session 40): a method trained again on the CPU against residual (CPU) and
     # against its own section-7 runs.
-    for m in bc-oh keyframe dagger bc-so hd fca; do
+    for m in $BASELINES; do
       [[ " ${dirs[*]} " == *"/eval/$m-cpu/"* ]] || continue
-      for a in residual "$m"; do
-        echo
-        "$CD" report "${dirs[@]}" --metrics outcomes --compare "$a" "$m-cpu" \
-          | sed -n '/^## .* vs /,$p' || true
-      done
+      for a in residual "$m"; do compare_section "$a" "$m-cpu"; done
     done
     echo
     "$CD" report "${dirs[@]}" --metrics outcomes --power | sed -n '/^## Power/,$p'

@@ -634,6 +634,7 @@ def failure_rows(primary):
     its runs here)."""
     interim = {m for m, row in zip(BASELINES, primary) if row[3].startswith("not yet")}
     res = evaluated_seeds("residual")
+    res_devices = set(devices_of("residual", res))
     mean_collision = {m: sum(c for c, _ in PAPER_FAILURES[m]) / len(PAPER_FAILURES[m])
                       for m in ["residual"] + BASELINES}
     out = []
@@ -656,7 +657,7 @@ def failure_rows(primary):
             devices = devices_of(m, other)
             parts.append("%s %s [%s, %s] (%d x %d seeds%s)" % (
                 m, pts(over["difference"]), pts(over["lo"]), pts(over["hi"]), len(res),
-                len(other), "" if set(devices) == set(devices_of("residual", res)) else
+                len(other), "" if set(devices) == res_devices else
                 "; " + on_devices(m, devices)))
             words.setdefault("not yet" if m in interim else claim_word(over["verdict"]),
                              []).append(m)
@@ -729,8 +730,8 @@ def device_rows():
     verdict is device_word's of the two. Interim until the planned seeds of each."""
     out = [device_effect_row("residual", "residual-cuda", "residual", CUDA_CMD)]
     out += [device_effect_row(m, m, m + "-cpu", CPU_CMD % m) for m in AGAIN_ON_CPU]
-    return out + [cuda_matched_row(m) for m in ("bc-oh", "keyframe")] + [
-        cpu_matched_row(m) for m in AGAIN_ON_CPU]
+    return out + [list(cuda_matched_row(m)) for m in ("bc-oh", "keyframe")] + [
+        list(cpu_matched_row(m)) for m in AGAIN_ON_CPU]
 
 
 ENDPOINT = {"bc-oh": "primary endpoint"}  # the others: the primary endpoint's mean
@@ -738,18 +739,22 @@ CUDA_CMD = "`TRAIN=cuda METHODS=residual scripts/verdicts.sh eval report`"
 CPU_CMD = "`TRAIN=cpu METHODS=%s scripts/verdicts.sh train eval report`"
 
 
+@functools.lru_cache(maxsize=None)
 def cuda_matched_row(m):
-    """Section 11 (session 30): residual (CUDA) - M over M's CUDA seeds, all on CUDA."""
+    """Section 11 (session 30): residual (CUDA) - M over M's CUDA seeds, all on CUDA (a tuple:
+    computed once, read by cpu_matched_row and device_rows)."""
     claim = ("Seed 001 tables 7-9, device-matched: residual beats %s, all trained on CUDA "
              "(%s)" % (m, ENDPOINT.get(m, "the primary endpoint's mean")))
-    return residual_vs_row(claim, "residual-cuda", m,
-                           "pending: residual's CUDA runs are not evaluated yet", CUDA_CMD,
-                           device="cuda")[0]
+    return tuple(residual_vs_row(claim, "residual-cuda", m,
+                                 "pending: residual's CUDA runs are not evaluated yet", CUDA_CMD,
+                                 device="cuda")[0])
 
 
+@functools.lru_cache(maxsize=None)
 def cpu_matched_row(m):
     """Section 11 (session 40): residual (CPU) - M-cpu, M trained again on this CPU. Where the
-    CUDA-matched row has its planned seeds too, the verdict is device_word's of the two."""
+    CUDA-matched row has its planned seeds too, the verdict is device_word's of the two (a
+    tuple: computed once, read by primary_rows and device_rows)."""
     claim = ("Seed 001 tables 7-9, device-matched: residual beats %s, both trained on this "
              "CPU (%s trained again: %s-cpu; %s)" % (
                  m, m, m, ENDPOINT.get(m, "the primary endpoint's mean")))
@@ -758,7 +763,7 @@ def cpu_matched_row(m):
     cuda = cuda_matched_row(m)[3]
     if not row[3].startswith("not yet") and not cuda.startswith("not yet"):
         row[3] = device_word(("on the CPU", row[3]), ("on CUDA", cuda))
-    return row
+    return tuple(row)
 
 
 def rows():
