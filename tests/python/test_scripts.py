@@ -459,6 +459,20 @@ class VerdictsChooseTest(TempDirCase):
         self.assertIn("| b | hold-balanced | 50.0 / 20.0 | 50.0 / 20.0 | 50.0 | **yes** |", table)
         self.assertIn("| b | signed | 50.0 / 30.0 | 50.0 / 30.0 | 50.0 |  |", table)
         self.assertIn("val/signed/seed0/d/regular/results.json", table)
+        # Choosing for one method later keeps the other methods' rows and writes its config only.
+        os.remove(os.path.join(configs, "b.toml"))
+        r = subprocess.run([os.path.join(SOURCE, "scripts", "verdicts.sh"), "choose"],
+                           env=dict(os.environ, CD=os.path.abspath(BIN), METHODS="c",
+                                    VAL=os.path.join(self.dir, "val"), CONFIGS=configs,
+                                    RESULTS=results, OUT=os.path.join(self.dir, "out")),
+                           capture_output=True, text=True, timeout=120)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(results, "tuning.md")) as f:
+            again = f.read()
+        self.assertIn("| b | hold-balanced | 50.0 / 20.0 | 50.0 / 20.0 | 50.0 | **yes** |", again)
+        self.assertIn("| a | signed-hold-balanced |", again)
+        self.assertFalse(os.path.exists(os.path.join(configs, "b.toml")))
+        self.assertTrue(os.path.exists(os.path.join(configs, "c.toml")))
 
 
 class VerdictsStandIn(TempDirCase):
