@@ -424,6 +424,17 @@ class VerdictsChooseTest(TempDirCase):
         with open(os.path.join(d, "results.json"), "w") as f:
             json.dump({"summary": {"success_rate": success, "collision_rate": collision}}, f)
 
+    def choose(self, methods, configs, results):
+        """Runs `verdicts.sh choose` for METHODS over self.dir/val; returns tuning.md."""
+        r = subprocess.run([os.path.join(SOURCE, "scripts", "verdicts.sh"), "choose"],
+                           env=dict(os.environ, CD=os.path.abspath(BIN), METHODS=methods,
+                                    VAL=os.path.join(self.dir, "val"), CONFIGS=configs,
+                                    RESULTS=results, OUT=os.path.join(self.dir, "out")),
+                           capture_output=True, text=True, timeout=120)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(results, "tuning.md")) as f:
+            return f.read()
+
     def test_the_rule_and_its_tie_breaks(self):
         import tomllib
         # a: signed-hold-balanced by success. b: signed and hold-balanced tie on success (0.5);
@@ -436,12 +447,7 @@ class VerdictsChooseTest(TempDirCase):
                 if v != "signed":
                     self.put(v, "d", kind, 0.9, 0.0)
         configs, results = os.path.join(self.dir, "configs"), os.path.join(self.dir, "results")
-        r = subprocess.run([os.path.join(SOURCE, "scripts", "verdicts.sh"), "choose"],
-                           env=dict(os.environ, CD=os.path.abspath(BIN), METHODS="a b c d",
-                                    VAL=os.path.join(self.dir, "val"), CONFIGS=configs,
-                                    RESULTS=results, OUT=os.path.join(self.dir, "out")),
-                           capture_output=True, text=True, timeout=120)
-        self.assertEqual(r.returncode, 0, r.stderr)
+        table = self.choose("a b c d", configs, results)
         keys = {"old": ("two", 0.0, "none"), "signed": ("signed", 0.0, "none"),
                 "hold-balanced": ("two", 1.0, "balanced"),
                 "signed-hold-balanced": ("signed", 1.0, "balanced")}
@@ -454,21 +460,12 @@ class VerdictsChooseTest(TempDirCase):
                               got["train"]["situation_weights"]), keys[variant], method)
             self.assertIn(('variant "%s"' % variant).encode(), text)
         self.assertFalse(os.path.exists(os.path.join(configs, "d.toml")))
-        with open(os.path.join(results, "tuning.md")) as f:
-            table = f.read()
         self.assertIn("| b | hold-balanced | 50.0 / 20.0 | 50.0 / 20.0 | 50.0 | **yes** |", table)
         self.assertIn("| b | signed | 50.0 / 30.0 | 50.0 / 30.0 | 50.0 |  |", table)
         self.assertIn("val/signed/seed0/d/regular/results.json", table)
         # Choosing for one method later keeps the other methods' rows and writes its config only.
         os.remove(os.path.join(configs, "b.toml"))
-        r = subprocess.run([os.path.join(SOURCE, "scripts", "verdicts.sh"), "choose"],
-                           env=dict(os.environ, CD=os.path.abspath(BIN), METHODS="c",
-                                    VAL=os.path.join(self.dir, "val"), CONFIGS=configs,
-                                    RESULTS=results, OUT=os.path.join(self.dir, "out")),
-                           capture_output=True, text=True, timeout=120)
-        self.assertEqual(r.returncode, 0, r.stderr)
-        with open(os.path.join(results, "tuning.md")) as f:
-            again = f.read()
+        again = self.choose("c", configs, results)
         self.assertIn("| b | hold-balanced | 50.0 / 20.0 | 50.0 / 20.0 | 50.0 | **yes** |", again)
         self.assertIn("| a | signed-hold-balanced |", again)
         self.assertFalse(os.path.exists(os.path.join(configs, "b.toml")))
