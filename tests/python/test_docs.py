@@ -206,6 +206,28 @@ class Docs(unittest.TestCase):
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
+    def test_seed_000s_seed_count_is_read_from_the_kept_evaluations(self):
+        # The page's header names how many training seeds seed 000's rows rest on; while an
+        # added seed is evaluated model by model it names the range and each model's count.
+        import shutil
+        import tempfile
+        tmp = tempfile.mkdtemp(prefix="cd_cimseeds_")
+        try:
+            models = ["cim", "dim", "rip", "cim-mlp", "cim-entangled", "cim-fewshot",
+                      "cim-mlp-fewshot"]
+            for m in models:
+                for s in range(3):
+                    os.makedirs(os.path.join(tmp, "results", "cim_paper", "eval", m, "seed%d" % s))
+            doc = load_verdicts_doc(tmp)
+            self.assertEqual(doc.cim_paper_seeds(), "3 seeds")
+            for m in ("cim", "dim"):
+                os.makedirs(os.path.join(tmp, "results", "cim_paper", "eval", m, "seed3"))
+            self.assertEqual(doc.cim_paper_seeds(),
+                             "3-4 seeds: cim 4, dim 4, rip 3, cim-mlp 3, cim-entangled 3, "
+                             "cim-fewshot 3, cim-mlp-fewshot 3")
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
     def test_the_compute_line_sums_the_records_epoch_seconds_by_group_and_device(self):
         import shutil
         import tempfile
