@@ -138,7 +138,9 @@ mode_config() {  # MODE -> a config
   echo "$file"
 }
 
-# The suite file (or built-in name) of a test suite at $TASKS tasks.
+# The suite file (or built-in name) of a test suite at $TASKS tasks, drawn with $CONFIG's world
+# settings: a route-mode config (ego.lateral = "route") draws no route that needs a lane change,
+# which its ego could not drive (the default, "free", draws them: on town-c three in four).
 suite_of() {
   local name=$1
   if [[ $TASKS == 25 ]]; then echo "$name"; return; fi
@@ -148,11 +150,13 @@ suite_of() {
     local town=${name%-*} kind=${name##*-} seed
     seed=$(( 5000 + $(cksum <<<"$name" | cut -d' ' -f1) % 1000 ))
     if [[ $kind == stopgo ]]; then
-      "$CD" suite --name "$name-$TASKS" --town "$town" --traffic regular --tasks "$TASKS" \
+      "$CD" suite ${CONFIG:+--config "$CONFIG"} --name "$name-$TASKS" --town "$town" \
+        --traffic regular --tasks "$TASKS" \
         --trials "$TRIALS" --seed "$seed" --scenarios red_light leader --min-route 120 \
         --max-route 300 --out "$file" >&2
     else
-      "$CD" suite --name "$name-$TASKS" --town "$town" --traffic "$kind" --tasks "$TASKS" \
+      "$CD" suite ${CONFIG:+--config "$CONFIG"} --name "$name-$TASKS" --town "$town" \
+        --traffic "$kind" --tasks "$TASKS" \
         --trials "$TRIALS" --seed "$seed" --out "$file" >&2
     fi
   fi

@@ -291,9 +291,12 @@ class TurnFailuresTest(unittest.TestCase):
 class SuiteOfTest(TempDirCase):
     """paper_lib.sh's suite_of: a suite of $TASKS tasks generated from the name's fixed seed."""
 
-    def suite_of(self, name, tasks):
-        env = dict(os.environ, CD=os.path.abspath(BIN), OUT=os.path.join(self.dir, "out"),
+    def suite_of(self, name, tasks, config=None, out="out"):
+        env = dict(os.environ, CD=os.path.abspath(BIN), OUT=os.path.join(self.dir, out),
                    TASKS=str(tasks), TRIALS="2")
+        env.pop("CONFIG", None)
+        if config:
+            env["CONFIG"] = config
         r = subprocess.run(["bash", "-c", 'source "%s/scripts/paper_lib.sh"; suite_of %s'
                             % (SOURCE, name)], env=env, capture_output=True, text=True,
                            timeout=120)
@@ -313,6 +316,29 @@ class SuiteOfTest(TempDirCase):
                                  (name.rsplit("-", 1)[0], traffic, 2))
                 self.assertEqual(len(suite["tasks"]), 4)
                 self.assertEqual({t["scenario"] for t in suite["tasks"]}, scenarios)
+
+    def test_a_route_mode_config_draws_tasks_its_ego_can_drive(self):
+        # Drawn with a route-mode config, every task of town-c (which has routes that need a lane
+        # change) is driven by the route-mode expert, none refused as an infrastructure failure;
+        # drawn with the default (free) settings, the same name and seed give other routes.
+        config = os.path.join(SOURCE, "configs", "cim_paper.toml")
+        r = self.suite_of("town-c-regular", 6, config)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        route_suite = r.stdout.strip()
+        out = os.path.join(self.dir, "eval")
+        e = subprocess.run([BIN, "eval", "--config", config, "--agent", "expert", "--suite",
+                            route_suite, "--trials", "1", "--workers", "1", "--quiet", "--out", out],
+                           capture_output=True, text=True, timeout=600)
+        self.assertEqual(e.returncode, 0, e.stderr)
+        with open(os.path.join(out, "results.json")) as f:
+            outcomes = [ep["outcome"] for ep in json.load(f)["episodes"]]
+        self.assertEqual(len(outcomes), 6)
+        self.assertNotIn("infrastructure_failure", outcomes)
+        r = self.suite_of("town-c-regular", 6, out="free")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(route_suite) as f, open(r.stdout.strip()) as g:
+            self.assertNotEqual([t["route"] for t in json.load(f)["tasks"]],
+                                [t["route"] for t in json.load(g)["tasks"]])
 
     def test_the_built_in_suite_at_25_tasks(self):
         r = self.suite_of("town-a-stopgo", 25)
