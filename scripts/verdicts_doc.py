@@ -37,16 +37,28 @@ def pts(x):
 
 def compare_over(dirs, a, b, metric):
     """report --compare A B over DIRS: the comparison over the conditions (or the one
-    condition's) and the number of conditions."""
+    condition's) and the conditions' rows. The comparison is None where there are several
+    conditions and a label has different seed counts across them (report gives no row over
+    them), e.g. while an added seed is evaluated condition by condition."""
     c = report(dirs, "--metrics", "outcomes", "--compare", a, b, "--compare-metric", metric)
-    return (c["compare"].get("over_conditions") or c["compare"]["conditions"][0],
-            len(c["compare"]["conditions"]))
+    conditions = c["compare"]["conditions"]
+    over = c["compare"].get("over_conditions")
+    if over is None and len(conditions) == 1:
+        over = conditions[0]
+    return over, conditions
 
 
 def compare_row(claim, paper, dirs, a, b, metric, a_better_is_claim, command):
     """A claim "A is better than B" (or, with a_better_is_claim False, "B better than A")
     judged by report --compare over the conditions both have."""
-    over, n = compare_over(dirs, a, b, metric)
+    over, conditions = compare_over(dirs, a, b, metric)
+    n = len(conditions)
+    if over is None:
+        counts = ", ".join("%s %d x %d" % (r["condition"], r["seeds_a"], r["seeds_b"])
+                           for r in conditions)
+        return [claim, paper, "%s - %s, %s over %d conditions: no interval over them while the "
+                "seed counts differ (seeds of A x B: %s)" % (a, b, metric, n, counts),
+                "not yet (the seed counts differ across the conditions)", "`%s`" % command]
     verdict = over["verdict"]
     wanted = "A better" if a_better_is_claim else "B better"
     if verdict == "not resolved":

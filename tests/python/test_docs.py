@@ -116,7 +116,12 @@ class Docs(unittest.TestCase):
         self.assertEqual(r.returncode, 0, r.stderr)
         with open(os.path.join(ROOT, "docs", "verdicts.md"), encoding="utf-8") as f:
             text = f.read()
-        self.assertIn("+10.7 [+0.6, +20.8] points", text)  # cim - dim: seed000.md's figure
+        # docs/seed000.md's cim - dim figure is the page's (both from the kept evaluations).
+        with open(os.path.join(ROOT, "docs", "seed000.md"), encoding="utf-8") as f:
+            m = re.search(r"cim - dim over the six suites: ([+-][0-9.]+ \[[+-][0-9.]+, [+-][0-9.]+\]) "
+                          r"points", f.read())
+        self.assertIsNotNone(m)
+        self.assertIn("cim - dim, error_rate over 6 conditions: %s points" % m.group(1), text)
         self.assertIn("| refuted |", text)
 
     def test_primary_rows_use_whole_seeds_and_stay_interim_until_every_seed_is_in(self):
@@ -225,6 +230,42 @@ class Docs(unittest.TestCase):
             self.assertEqual(doc.cim_paper_seeds(),
                              "3-4 seeds: cim 4, dim 4, rip 3, cim-mlp 3, cim-entangled 3, "
                              "cim-fewshot 3, cim-mlp-fewshot 3")
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+    def test_a_claim_over_conditions_waits_while_seed_counts_differ(self):
+        # A checkout of its own with seed 000's kept cim and dim runs at seeds 0-1 on two
+        # suites; with dim's seed 1 missing on one suite, report gives no row over the suites
+        # and the claim's row says so, rather than passing one suite's figure off as the whole.
+        import shutil
+        import tempfile
+        tmp = tempfile.mkdtemp(prefix="cd_cimrow_")
+        try:
+            suites = ("town-a-regular", "town-b-dense")
+            for m in ("cim", "dim"):
+                for seed in (0, 1):
+                    for suite in suites:
+                        rel = os.path.join("results", "cim_paper", "eval", m, "seed%d" % seed,
+                                           suite)
+                        os.makedirs(os.path.join(tmp, rel))
+                        shutil.copy(os.path.join(ROOT, rel, "results.json"),
+                                    os.path.join(tmp, rel, "results.json"))
+            doc = load_verdicts_doc(tmp)
+
+            def row():
+                return doc.compare_row("claim", "paper",
+                                       doc.dirs_of("results/cim_paper/eval/dim/seed*/*",
+                                                   "results/cim_paper/eval/cim/seed*/*"),
+                                       "cim", "dim", "error_rate", True, "cmd")
+            whole = row()
+            self.assertRegex(whole[2], r"^cim - dim, error_rate over 2 conditions: [+-][0-9.]+ "
+                                       r"\[[+-][0-9.]+, [+-][0-9.]+\] points")
+            self.assertNotIn("not yet", whole[3])
+            shutil.rmtree(os.path.join(tmp, "results", "cim_paper", "eval", "dim", "seed1",
+                                       "town-b-dense"))
+            part = row()
+            self.assertEqual(part[3], "not yet (the seed counts differ across the conditions)")
+            self.assertIn("town-a-regular-100 2 x 2, town-b-dense-100 2 x 1", part[2])
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
 
