@@ -151,12 +151,21 @@ void add_eval(CLI::App& app) {
       std::printf(", %ld steps in %.1f s, %.0f steps/s", r.steps, r.seconds, r.steps / r.seconds);
     std::printf(")\n");
     const long failed = r.results["summary"]["infrastructure_failures"].get<long>();
-    if (failed > 0)
+    if (failed > 0) {
+      // Name the first one's cause: a crash is retried by a rerun, a task the ego cannot drive
+      // (a route-mode ego on a route that needs a lane change) is refused again.
+      std::string first;
+      for (const auto& e : r.results["episodes"])
+        if (e.value("outcome", "") == "infrastructure_failure") {
+          first = e.value("failure", "");
+          break;
+        }
       std::fprintf(stderr,
                    "causaldrive: warning: %ld episode(s) failed for reasons outside the agent "
-                   "(worker or SUMO crash); they are not counted; rerun the same command to "
-                   "retry them\n",
-                   failed);
+                   "(the first: %s); they are not counted; rerun the same command to retry "
+                   "them\n",
+                   failed, first.empty() ? "no reason recorded" : first.c_str());
+    }
   });
 }
 

@@ -336,9 +336,20 @@ class SuiteOfTest(TempDirCase):
         self.assertNotIn("infrastructure_failure", outcomes)
         r = self.suite_of("town-c-regular", 6, out="free")
         self.assertEqual(r.returncode, 0, r.stderr)
-        with open(route_suite) as f, open(r.stdout.strip()) as g:
+        free_suite = r.stdout.strip()
+        with open(route_suite) as f, open(free_suite) as g:
             self.assertNotEqual([t["route"] for t in json.load(f)["tasks"]],
                                 [t["route"] for t in json.load(g)["tasks"]])
+        # The free suite's lane changes, driven in route mode, are refused, and the warning
+        # names the first refusal's cause.
+        e = subprocess.run([BIN, "eval", "--config", config, "--agent", "expert", "--suite",
+                            free_suite, "--trials", "1", "--workers", "1", "--quiet", "--out",
+                            os.path.join(self.dir, "eval-free")],
+                           capture_output=True, text=True, timeout=600)
+        self.assertEqual(e.returncode, 0, e.stderr)
+        self.assertRegex(e.stderr, r"warning: [1-6] episode\(s\) failed for reasons outside the "
+                                   r"agent \(the first: job [0-9]+: the task's route needs a lane "
+                                   r"change")
 
     def test_the_built_in_suite_at_25_tasks(self):
         r = self.suite_of("town-a-stopgo", 25)
