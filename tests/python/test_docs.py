@@ -2,10 +2,13 @@
 docs/ pages and ARCHITECTURE.md resolves (the file, and a #anchor to one of its headings, by
 GitHub's rule); docs/configuration.md is what `causaldrive config --reference` prints now;
 docs/verdicts.md is what the kept results give, its tables 7-9 rows from whole seeds only."""
+import contextlib
 import os
 import re
+import shutil
 import subprocess
 import sys
+import tempfile
 import unittest
 
 from support import BIN
@@ -38,6 +41,17 @@ def anchors(path):
     with open(path, encoding="utf-8") as f:
         text = re.sub(r"```.*?```", "", f.read(), flags=re.S)
     return {slug(m.group(1)) for m in re.finditer(r"^#+ (.*)$", text, re.M)}
+
+
+@contextlib.contextmanager
+def scratch_checkout(prefix):
+    """A folder of its own standing in for a checkout (results/ written by the test), removed
+    afterwards."""
+    tmp = tempfile.mkdtemp(prefix=prefix)
+    try:
+        yield tmp
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def load_verdicts_doc(root):
@@ -127,10 +141,7 @@ class Docs(unittest.TestCase):
     def test_primary_rows_use_whole_seeds_and_stay_interim_until_every_seed_is_in(self):
         # A checkout of its own: residual and bc-oh "evaluated" in the six conditions by copies
         # of the kept 25-task runs (residual_paper), bc-oh's seed 2 missing one condition.
-        import shutil
-        import tempfile
-        tmp = tempfile.mkdtemp(prefix="cd_verdicts_")
-        try:
+        with scratch_checkout("cd_verdicts_") as tmp:
             success = {}
             for m in ("residual", "bc-oh"):
                 for s in (0, 1, 2):
@@ -149,17 +160,12 @@ class Docs(unittest.TestCase):
             b = sum(success["bc-oh", s, c] for s in (0, 1) for c in CONDITIONS) / 12
             self.assertIn("over 6 conditions: %+.1f [" % (100 * (a - b)), row[2])
             self.assertIn("pending", rows[1][2])  # keyframe: nothing evaluated
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
 
     def test_table_rows_compare_each_tables_two_conditions(self):
         # A checkout of its own: residual and bc-oh seeds 0-1 "evaluated" in the six conditions
         # by copies of the kept 25-task runs; each table's row holds residual - bc-oh in its two
         # conditions, checked by hand, and stays interim below the planned seeds.
-        import shutil
-        import tempfile
-        tmp = tempfile.mkdtemp(prefix="cd_tables_")
-        try:
+        with scratch_checkout("cd_tables_") as tmp:
             success = {k: success_share(eps) for k, eps in
                        copy_kept_seeds(tmp, ("residual", "bc-oh"), (0, 1)).items()}
             doc = load_verdicts_doc(tmp)
@@ -176,8 +182,6 @@ class Docs(unittest.TestCase):
                 self.assertIn("(2 x 2 seeds)", row[2])
                 self.assertEqual(row[3], "not yet (interim: 2 of 10 and 2 of 10 planned seeds "
                                          "evaluated)")
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
 
     def test_the_failure_rows_compare_copycat_and_collision_rates_lower_better(self):
         # A checkout of its own: residual and bc-oh seeds 0-1 "evaluated" in the six conditions
@@ -185,10 +189,7 @@ class Docs(unittest.TestCase):
         # own predate the taxonomy); the copycat and collision differences by hand (SPEC
         # section 14: copycat = stuck + restart stall + stopped free), bc-oh interim as its
         # primary row, every other baseline pending.
-        import shutil
-        import tempfile
-        tmp = tempfile.mkdtemp(prefix="cd_failures_")
-        try:
+        with scratch_checkout("cd_failures_") as tmp:
             eps = copy_kept_seeds(tmp, ("residual",), (0, 1), src_method="dagger")
             eps.update(copy_kept_seeds(tmp, ("bc-oh",), (0, 1)))
             for s in (0, 1):  # bc-oh trained on another device than residual: named
@@ -208,16 +209,11 @@ class Docs(unittest.TestCase):
                 self.assertEqual(row[3], "not yet on bc-oh, keyframe, dagger, bc-so, hd, fca")
             self.assertIn("copycat", rows[0][0])
             self.assertIn("mean collision 23.1 against bc-oh 23.8", rows[1][1])
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
 
     def test_seed_000s_seed_count_is_read_from_the_kept_evaluations(self):
         # The page's header names how many training seeds seed 000's rows rest on; while an
         # added seed is evaluated model by model it names the range and each model's count.
-        import shutil
-        import tempfile
-        tmp = tempfile.mkdtemp(prefix="cd_cimseeds_")
-        try:
+        with scratch_checkout("cd_cimseeds_") as tmp:
             models = ["cim", "dim", "rip", "cim-mlp", "cim-entangled", "cim-fewshot",
                       "cim-mlp-fewshot"]
             for m in models:
@@ -230,17 +226,12 @@ class Docs(unittest.TestCase):
             self.assertEqual(doc.cim_paper_seeds(),
                              "3-4 seeds: cim 4, dim 4, rip 3, cim-mlp 3, cim-entangled 3, "
                              "cim-fewshot 3, cim-mlp-fewshot 3")
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
 
     def test_a_claim_over_conditions_waits_while_seed_counts_differ(self):
         # A checkout of its own with seed 000's kept cim and dim runs at seeds 0-1 on two
         # suites; with dim's seed 1 missing on one suite, report gives no row over the suites
         # and the claim's row says so, rather than passing one suite's figure off as the whole.
-        import shutil
-        import tempfile
-        tmp = tempfile.mkdtemp(prefix="cd_cimrow_")
-        try:
+        with scratch_checkout("cd_cimrow_") as tmp:
             suites = ("town-a-regular", "town-b-dense")
             for m in ("cim", "dim"):
                 for seed in (0, 1):
@@ -266,14 +257,9 @@ class Docs(unittest.TestCase):
             part = row()
             self.assertEqual(part[3], "not yet (the seed counts differ across the conditions)")
             self.assertIn("town-a-regular-100 2 x 2, town-b-dense-100 2 x 1", part[2])
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
 
     def test_the_compute_line_sums_the_records_epoch_seconds_by_group_and_device(self):
-        import shutil
-        import tempfile
-        tmp = tempfile.mkdtemp(prefix="cd_compute_")
-        try:
+        with scratch_checkout("cd_compute_") as tmp:
             doc = load_verdicts_doc(tmp)
             self.assertIn("): no run yet.", doc.compute_line())
             rec = dict(best_epoch=2, epochs_done=3, best_loss=0.5)
@@ -299,16 +285,11 @@ class Docs(unittest.TestCase):
             self.assertEqual(len(at), 1)  # the retrain's table: its one run, data D2 (odd seed)
             self.assertEqual(lines[at[0] + 4], "| residual | 3 | D2 | cpu | not recorded | ? | "
                                                "2 of 3 | 0.50000 |")
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
 
     def test_free_mode_rows_read_their_own_results_and_stay_interim_until_five_seeds(self):
         # A checkout of its own: residual seeds 0-2 and bc-oh seeds 0-1 "evaluated" in free
         # mode (results/verdicts-free) by copies of the kept 25-task runs; route mode empty.
-        import shutil
-        import tempfile
-        tmp = tempfile.mkdtemp(prefix="cd_free_")
-        try:
+        with scratch_checkout("cd_free_") as tmp:
             success = {}
             for m, seeds in (("residual", (0, 1, 2)), ("bc-oh", (0, 1))):
                 success.update((k, success_share(eps)) for k, eps in copy_kept_seeds(
@@ -326,19 +307,14 @@ class Docs(unittest.TestCase):
             self.assertEqual([r[2] for r in rows[1:]], ["pending: the free-mode runs are not "
                                                         "evaluated yet"] * 2)  # keyframe, dagger
             self.assertIn("pending", doc.primary_rows()[0][2])  # route mode's rows: untouched
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
 
     def test_the_device_rows_pair_seeds_and_match_devices(self):
         # A checkout of its own: residual (CPU) seeds 0-2 and residual-cuda seeds 0-2 and 4
         # "evaluated" by copies of the kept 25-task runs (residual-cuda's are keyframe's,
         # relabelled), bc-oh seeds 0-1. Oracle: each seed's mean success over the six
         # conditions by hand, statsmodels' t interval of the paired differences.
-        import shutil
-        import tempfile
         from statsmodels.stats.weightstats import DescrStatsW
-        tmp = tempfile.mkdtemp(prefix="cd_device_")
-        try:
+        with scratch_checkout("cd_device_") as tmp:
             endpoint = {}
             for label, src_m, seeds in (("residual", "residual", (0, 1, 2)),
                                         ("residual-cuda", "keyframe", (0, 1, 2, 4)),
@@ -381,19 +357,14 @@ class Docs(unittest.TestCase):
                           cpu[2])
             self.assertNotIn("device confounded", cpu[2])
             self.assertEqual(doc.primary_comparison()[0], "residual")
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
 
     def test_keyframe_trained_again_on_the_cpu_gives_its_device_rows(self):
         # Protocol section 11 (session 40). A checkout of its own: residual (CPU), keyframe
         # (CUDA), keyframe-cpu (records under results/verdicts/cpu) and residual-cuda at seeds
         # 0-9, two-stream keyframe (CPU) at 0-4, "evaluated" by copies of the kept 25-task runs.
         # Oracle: mean success by hand, statsmodels' t interval of the paired differences.
-        import shutil
-        import tempfile
         from statsmodels.stats.weightstats import DescrStatsW
-        tmp = tempfile.mkdtemp(prefix="cd_cpu_")
-        try:
+        with scratch_checkout("cd_cpu_") as tmp:
             endpoint, dense = {}, {}
             for label, src, kind, device in (("residual", "residual", "train", "cpu"),
                                              ("keyframe", "keyframe", "train", "cuda"),
@@ -466,16 +437,11 @@ class Docs(unittest.TestCase):
                              "not yet (interim: residual's CUDA runs have 8 of the 10 seeds of "
                              "keyframe; protocol section 11; or the device-matched row on the "
                              "CPU below, with 3 of keyframe-cpu's 10 seeds)")
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
 
     def test_superseded_records_are_listed_beside_the_runs_that_replaced_them(self):
         # Protocol section 10: a record a retrain replaced stays listed, with its why.txt, in
         # its own table; the kept run of the same method and seed stays in the runs table.
-        import shutil
-        import tempfile
-        tmp = tempfile.mkdtemp(prefix="cd_superseded_")
-        try:
+        with scratch_checkout("cd_superseded_") as tmp:
             epochs = {"best_epoch": 7, "epochs_done": 8}
             write_run_record(tmp, "residual.record", 13, "cpu", runtime={
                 "libtorch": "1.13.0", "cpu": "AMD EPYC", "cpu_kernels": "AVX2"},
@@ -491,8 +457,6 @@ class Docs(unittest.TestCase):
                           "0.16495 | Trained on another machine. |", lines)
             # The superseded record is not one of the kept runs.
             self.assertEqual(sum("| residual | 13 |" in line for line in lines), 2)
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
 
     def test_the_power_rule_judges_the_primary_comparison_of_the_day(self):
         # A checkout of its own: residual and bc-oh at ten seeds, residual-cuda at eight, by
@@ -501,10 +465,7 @@ class Docs(unittest.TestCase):
         # comparison is the CPU one while residual-cuda lacks seeds, and both stay interim;
         # at ten seeds a half-width over 6 adds seeds 10-14 to residual and bc-oh.
         import re
-        import shutil
-        import tempfile
-        tmp = tempfile.mkdtemp(prefix="cd_power_")
-        try:
+        with scratch_checkout("cd_power_") as tmp:
             for label, src_m, seeds in (("residual", "residual", range(10)),
                                         ("bc-oh", "bc-oh", range(10)),
                                         ("residual-cuda", "keyframe", range(8))):
@@ -548,18 +509,13 @@ class Docs(unittest.TestCase):
             self.assertIn("residual-cuda - bc-oh: half-width", doc.power_row()[2])
             self.assertIn("(10 x 10 seeds)", doc.power_row()[2])
             self.assertNotIn("CUDA runs have", doc.primary_rows()[0][3])
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
 
     def test_the_table10_row_is_each_seeds_green_light_rate_with_its_t_interval(self):
         # Three seeds of each method "evaluated" by copies of the kept 25-task runs; the oracle
         # pools each run's green entries over its passages by hand and takes statsmodels' t
         # interval over seeds (cut to 0-100 %).
-        import shutil
-        import tempfile
         from statsmodels.stats.weightstats import DescrStatsW
-        tmp = tempfile.mkdtemp(prefix="cd_t10_")
-        try:
+        with scratch_checkout("cd_t10_") as tmp:
             rates = {}
             for m in ("bc-oh", "keyframe", "residual"):
                 for s in range(3):
@@ -576,8 +532,6 @@ class Docs(unittest.TestCase):
                 self.assertIn("%s %.1f [%.1f, %.1f] (3 seeds)" % (
                     m, sum(r) / 3, max(0, lo), min(100, hi)), row[2])
             self.assertEqual(row[3], "not yet (interim: bc-oh 3, keyframe 3, residual 3 of 10 seeds)")
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
 
     def test_the_ablation_rows_name_their_devices_and_add_the_device_matched_comparison(self):
         # Protocol section 11 (session 40). A checkout of its own: two-stream bc-oh and
@@ -585,10 +539,7 @@ class Docs(unittest.TestCase):
         # 8-9 CPU) and keyframe at 0-9 (all CUDA), residual-b2 and residual (all CPU), each
         # "evaluated" by copies of the kept 25-task runs. Oracle: the mean success on a-dense
         # of each side by hand.
-        import shutil
-        import tempfile
-        tmp = tempfile.mkdtemp(prefix="cd_abl_")
-        try:
+        with scratch_checkout("cd_abl_") as tmp:
             dense = {}
             for label, src, seeds, cpu in (("two-stream-bc-oh", "residual", 5, 5),
                                            ("two-stream-keyframe", "bc-oh", 5, 5),
@@ -642,8 +593,6 @@ class Docs(unittest.TestCase):
             row = load_verdicts_doc(tmp).ablation_rows()[0]
             self.assertTrue(row[3].startswith("not yet (interim: 4 of 5 and 12 of 15 planned"),
                             row[3])
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
 
     def test_device_word_keeps_a_verdict_only_where_the_device_matched_one_agrees(self):
         doc = load_verdicts_doc(ROOT)
@@ -664,11 +613,8 @@ class Docs(unittest.TestCase):
         # Hand-made probe reports of 3 residual and 4 bc-oh seeds; the oracle is statsmodels'
         # two-sample t interval with unequal variances.
         import json
-        import shutil
-        import tempfile
         from statsmodels.stats.weightstats import CompareMeans, DescrStatsW
-        tmp = tempfile.mkdtemp(prefix="cd_probe_")
-        try:
+        with scratch_checkout("cd_probe_") as tmp:
             values = {"residual": [(0.1, 0.30), (0.2, 0.35), (0.15, 0.20)],
                       "bc-oh": [(0.3, 0.5), (0.25, 0.45), (0.4, 0.6), (0.35, 0.52)]}
             for m, rows in values.items():
@@ -696,19 +642,14 @@ class Docs(unittest.TestCase):
                 self.assertEqual(doc.probe_row()[3], "confirmed on path free, blocked")
             finally:
                 del os.environ["ROOT"]
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
 
     def test_the_stall_row_is_welchs_interval_of_the_retrains_against_bc_oh(self):
         # Hand-made stop-and-go summaries of 3 residual retrains and 4 bc-oh seeds, one bc-oh
         # run with no event (stall_rate null: left out); the oracle is statsmodels' two-sample
         # t interval with unequal variances.
         import json
-        import shutil
-        import tempfile
         from statsmodels.stats.weightstats import CompareMeans, DescrStatsW
-        tmp = tempfile.mkdtemp(prefix="cd_stall_")
-        try:
+        with scratch_checkout("cd_stall_") as tmp:
             values = {"residual-retrain": [(0.10, 0.0), (0.20, 0.05), (0.05, 0.10)],
                       "bc-oh": [(0.30, 0.10), (0.45, 0.0), (0.40, 0.20), (0.35, None),
                                 (0.5, 0.3)]}
@@ -735,8 +676,6 @@ class Docs(unittest.TestCase):
             doc.RETRAINS = 3  # every retrain in: a verdict per suite
             self.assertEqual(doc.stall_row()[3],
                              "confirmed on town-a; not resolved at this power on town-b")
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
 
     def test_the_readme_fits_in_250_lines(self):
         with open(os.path.join(ROOT, "README.md"), encoding="utf-8") as f:

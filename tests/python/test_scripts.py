@@ -317,6 +317,12 @@ class SuiteOfTest(TempDirCase):
                 self.assertEqual(len(suite["tasks"]), 4)
                 self.assertEqual({t["scenario"] for t in suite["tasks"]}, scenarios)
 
+    def expert_eval(self, config, suite, out):
+        """`causaldrive eval` of the expert over SUITE, one trial a task, into OUT."""
+        return subprocess.run([BIN, "eval", "--config", config, "--agent", "expert", "--suite",
+                               suite, "--trials", "1", "--workers", "1", "--quiet", "--out", out],
+                              capture_output=True, text=True, timeout=600)
+
     def test_a_route_mode_config_draws_tasks_its_ego_can_drive(self):
         # Drawn with a route-mode config, every task of town-c (which has routes that need a lane
         # change) is driven by the route-mode expert, none refused as an infrastructure failure;
@@ -326,9 +332,7 @@ class SuiteOfTest(TempDirCase):
         self.assertEqual(r.returncode, 0, r.stderr)
         route_suite = r.stdout.strip()
         out = os.path.join(self.dir, "eval")
-        e = subprocess.run([BIN, "eval", "--config", config, "--agent", "expert", "--suite",
-                            route_suite, "--trials", "1", "--workers", "1", "--quiet", "--out", out],
-                           capture_output=True, text=True, timeout=600)
+        e = self.expert_eval(config, route_suite, out)
         self.assertEqual(e.returncode, 0, e.stderr)
         with open(os.path.join(out, "results.json")) as f:
             outcomes = [ep["outcome"] for ep in json.load(f)["episodes"]]
@@ -342,10 +346,7 @@ class SuiteOfTest(TempDirCase):
                                 [t["route"] for t in json.load(g)["tasks"]])
         # The free suite's lane changes, driven in route mode, are refused, and the warning
         # names the first refusal's cause.
-        e = subprocess.run([BIN, "eval", "--config", config, "--agent", "expert", "--suite",
-                            free_suite, "--trials", "1", "--workers", "1", "--quiet", "--out",
-                            os.path.join(self.dir, "eval-free")],
-                           capture_output=True, text=True, timeout=600)
+        e = self.expert_eval(config, free_suite, os.path.join(self.dir, "eval-free"))
         self.assertEqual(e.returncode, 0, e.stderr)
         self.assertRegex(e.stderr, r"warning: [1-6] episode\(s\) failed for reasons outside the "
                                    r"agent \(the first: job [0-9]+: the task's route needs a lane "
