@@ -121,10 +121,21 @@ kept_eval() {
 }
 
 # kept_report TABLE METRICS DIRS...: `causaldrive report` over DIRS into $OUT/TABLE.md and .csv,
-# both kept.
+# both kept, unless a run among DIRS holds an infrastructure failure (kept_eval did not keep it:
+# a rerun retries its episodes). Then the table is written in $OUT only, to look at, the kept
+# one stays as it was, and the step fails naming those runs, so that no kept table averages a
+# partial run in.
 kept_report() {
-  local table=$1 metrics=$2; shift 2
+  local table=$1 metrics=$2 dir failed=(); shift 2
   "$CD" report "$@" --metrics "$metrics" --markdown "$OUT/$table.md" --csv "$OUT/$table.csv"
+  for dir in "$@"; do
+    grep -q '"infrastructure_failure"' "$dir/results.json" 2>/dev/null && failed+=("$dir")
+  done
+  if [[ ${#failed[@]} != 0 ]]; then
+    echo "error: $OUT/$table.md not kept: ${#failed[@]} run(s) hold episodes that failed" \
+      "outside the agent (run the step again to retry them): ${failed[*]}" >&2
+    return 1
+  fi
   keep_file "$OUT/$table.md"
   keep_file "$OUT/$table.csv"
 }

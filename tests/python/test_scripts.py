@@ -1,11 +1,12 @@
 """The reproduction scripts' command line (scripts/*_paper.sh, run_steps in paper_lib.sh):
 several steps run in order, an unknown step is refused before any step runs; kept_train keeps a
 finished run and copies a kept one back without training; kept_json keeps a report and never
-measures a kept one again; suite_of generates suites of any size; steering_summary.py condenses
-the kept csv files; config_variant.py sets keys of a config; diagnose_table.py sums diagnose
-reports over seeds; turn_failures.py classifies a route's junction passages by their turn;
-gpu_travel.sh counts what a call to a lent machine carries and moves results/ out and back;
-gpu_import.py brings its packs back; verdicts.sh's ablations and report steps."""
+measures a kept one again; kept_report keeps no table over a partial run; suite_of generates
+suites of any size; steering_summary.py condenses the kept csv files; config_variant.py sets
+keys of a config; diagnose_table.py sums diagnose reports over seeds; turn_failures.py
+classifies a route's junction passages by their turn; gpu_travel.sh counts what a call to a lent
+machine carries and moves results/ out and back; gpu_import.py brings its packs back;
+verdicts.sh's ablations and report steps."""
 import importlib.util
 import io
 import json
@@ -193,6 +194,58 @@ class KeptJsonTest(TempDirCase):
                          ["error: no %s (its command failed)" % self.path("out")])
         self.assertEqual(os.listdir(os.path.dirname(self.path("out"))), [])  # no .tmp left
         self.assertFalse(os.path.exists(self.path("keep")))
+
+
+class KeptReportTest(TempDirCase):
+    """paper_lib.sh's kept_report: the real `causaldrive report` over two evaluations (a kept
+    results.json of the camera's tuning, copied); the table is kept only when no run holds an
+    infrastructure failure."""
+
+    RESULTS = os.path.join(SOURCE, "results", "camera", "recipe", "eval", "old", "seed0", "bc-oh",
+                           "regular", "results.json")
+
+    def write_run(self, name, failed=0):
+        with open(self.RESULTS) as f:
+            results = json.load(f)
+        for episode in results["episodes"][:failed]:
+            episode["outcome"] = "infrastructure_failure"
+        path = os.path.join(self.dir, "out", "eval", name)
+        os.makedirs(path)
+        with open(os.path.join(path, "results.json"), "w") as f:
+            json.dump(results, f)
+        return path
+
+    def kept_report(self, *dirs):
+        script = ('source "%s/scripts/paper_lib.sh"\nkept_report table1 outcomes %s\n'
+                  % (SOURCE, " ".join(dirs)))
+        env = dict(os.environ, CD=os.path.abspath(BIN), OUT=os.path.join(self.dir, "out"),
+                   KEEP=os.path.join(self.dir, "keep"))
+        return subprocess.run(["bash", "-c", script], env=env, capture_output=True, text=True,
+                              timeout=60)
+
+    def test_a_table_of_complete_runs_is_kept(self):
+        r = self.kept_report(self.write_run("a"), self.write_run("b"))
+        self.assertEqual(r.returncode, 0, r.stderr)
+        for name in ("table1.md", "table1.csv"):
+            with open(os.path.join(self.dir, "out", name)) as f, \
+                    open(os.path.join(self.dir, "keep", name)) as g:
+                self.assertEqual(f.read(), g.read())
+
+    def test_a_table_over_a_partial_run_is_written_but_not_kept(self):
+        os.makedirs(os.path.join(self.dir, "keep"))
+        with open(os.path.join(self.dir, "keep", "table1.md"), "w") as f:
+            f.write("kept before\n")
+        partial = self.write_run("b", failed=3)
+        r = self.kept_report(self.write_run("a"), partial)
+        self.assertNotEqual(r.returncode, 0)
+        self.assertEqual(r.stderr.strip().splitlines()[-1],
+                         "error: %s/out/table1.md not kept: 1 run(s) hold episodes that failed "
+                         "outside the agent (run the step again to retry them): %s"
+                         % (self.dir, partial))
+        self.assertTrue(os.path.exists(os.path.join(self.dir, "out", "table1.md")))  # to look at
+        with open(os.path.join(self.dir, "keep", "table1.md")) as f:
+            self.assertEqual(f.read(), "kept before\n")
+        self.assertFalse(os.path.exists(os.path.join(self.dir, "keep", "table1.csv")))
 
 
 class DiagnoseTableTest(TempDirCase):
