@@ -5,10 +5,10 @@
 # Every step resumes: eval skips the episodes its output folder already holds.
 #
 # Kept results. $OUT (runs/..., ignored by git) holds data, checkpoints and evaluations, and is
-# lost with the checkout. Every finished evaluation's results.json (one with no infrastructure
-# failure), probe report and table (one over such evaluations only) (and, for the scripts that
-# train through kept_train, every finished run) is also copied to $KEEP
-# (default results/<name of $OUT>, committed), at the same path relative to $OUT. A result found
+# lost with the checkout. Every finished evaluation's results.json, probe report and table, and
+# for the scripts that train through kept_train every finished run, is also copied to $KEEP
+# (default results/<name of $OUT>, committed), at the same path relative to $OUT; an evaluation
+# holding an infrastructure failure is not, nor a table over one. A result found
 # in $KEEP is used as it is: its evaluation is not run again and its checkpoint is not needed, so
 # a table resumes in a fresh checkout from what earlier sessions measured. Delete a kept file (or the folder) to measure it again, e.g. after a code change.
 
