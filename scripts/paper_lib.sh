@@ -106,6 +106,10 @@ kept_train() {
   fi
 }
 
+# has_failures DIR: whether DIR's results.json holds an episode that failed outside the agent
+# (an infrastructure failure: a rerun of its evaluation retries it).
+has_failures() { grep -q '"infrastructure_failure"' "$1/results.json" 2>/dev/null; }
+
 # kept_eval DIR ARGS...: sets KEPT to the folder whose results.json the tables read: $KEEP's copy
 # of DIR when one is kept, else DIR after `causaldrive eval ARGS --out DIR` (kept when no episode
 # ended in an infrastructure failure, which a rerun would retry).
@@ -114,7 +118,7 @@ kept_eval() {
   KEPT=$(kept_of "$dir")
   [[ -f $KEPT/results.json ]] && return
   "$CD" eval "$@" --out "$dir"
-  if grep -q '"infrastructure_failure"' "$dir/results.json"; then
+  if has_failures "$dir"; then
     KEPT=$dir
   else
     keep_file "$dir/results.json"
@@ -130,7 +134,7 @@ kept_report() {
   local table=$1 metrics=$2 dir failed=(); shift 2
   "$CD" report "$@" --metrics "$metrics" --markdown "$OUT/$table.md" --csv "$OUT/$table.csv"
   for dir in "$@"; do
-    grep -q '"infrastructure_failure"' "$dir/results.json" 2>/dev/null && failed+=("$dir")
+    has_failures "$dir" && failed+=("$dir")
   done
   if [[ ${#failed[@]} != 0 ]]; then
     echo "error: $OUT/$table.md not kept: ${#failed[@]} run(s) hold episodes that failed" \
