@@ -15,6 +15,7 @@
 #include "bench/metrics.hpp"
 #include "core/atomic_file.hpp"
 #include "core/error.hpp"
+#include "sense/camera.hpp"
 
 namespace cd {
 
@@ -190,15 +191,25 @@ int traffic_rank(const std::string& column) {
 
 }  // namespace
 
-std::string RunResult::column() const {
-  return sensor == "clean" ? suite : suite + " (" + sensor + " sensor)";
+std::string run_column(const std::string& suite, const std::string& sensor,
+                       const std::string& weather) {
+  std::string column = suite;
+  if (sensor != "clean") column += " (" + sensor + " sensor)";
+  if (!weather.empty() && weather != kTrainWeathers) column += " (" + weather + " weather)";
+  return column;
+}
+
+std::string RunResult::column() const { return run_column(suite, sensor, weather); }
+
+bool RunResult::new_sensor() const {
+  return sensor != "clean" || (!weather.empty() && weather != kTrainWeathers);
 }
 
 const std::vector<FailureCondition>& failure_conditions() {
   static const std::vector<FailureCondition> conditions = {
-      {"training town", "town-a", "clean"},
-      {"new sensor", "town-a", "shifted"},
-      {"new town", "town-b", "clean"},
+      {"training town", "town-a", false, "clean sensor"},
+      {"new sensor", "town-a", true, "shifted sensor or held-out weather"},
+      {"new town", "town-b", false, "clean sensor"},
   };
   return conditions;
 }
@@ -380,9 +391,24 @@ RunResult load_result(const std::string& path) {
       throw DataError(path + ": key '" + key + "' must be a non-empty string");
     *field = it->get<std::string>();
   }
+  if (auto it = doc.find("weather"); it != doc.end()) {
+    if (!it->is_string() || it->get<std::string>().empty())
+      throw DataError(path + ": key 'weather' must be a non-empty string");
+    r.weather = it->get<std::string>();
+  }
   if (auto eps = doc.find("episodes"); eps != doc.end() && eps->is_array()) {
+    int held_out = 0, training = 0;  // episodes by their weather (files without 'weather')
     for (const nlohmann::json& e : *eps) {
       if (!e.is_object()) throw DataError(path + ": an entry of 'episodes' is not an object");
+      if (auto w = e.find("weather"); w != e.end() && w->is_string() && !w->get<std::string>().empty()) {
+        const auto& sets = camera_weathers();
+        auto set = std::find_if(sets.begin(), sets.end(),
+                                [&](const CameraWeather& c) { return c.name == w->get<std::string>(); });
+        if (set == sets.end())
+          throw DataError(path + ": an episode's weather '" + w->get<std::string>() +
+                          "' is not a camera weather set");
+        ++(set->held_out ? held_out : training);
+      }
       RunEpisode ep;
       ep.task = e.value("task", e.value("index", 0));
       ep.outcome = e.value("outcome", "");
@@ -397,6 +423,8 @@ RunResult load_result(const std::string& path) {
       if (auto r = e.find("return"); r != e.end() && r->is_number()) ep.ret = r->get<double>();
       r.episodes.push_back(ep);
     }
+    if (r.weather.empty() && held_out + training > 0)
+      r.weather = training == 0 ? kHeldOutWeathers : held_out == 0 ? kTrainWeathers : "mixed";
   }
   auto summary = doc.find("summary");
   if (summary == doc.end())
@@ -579,7 +607,7 @@ ReportTable build_report(const std::vector<RunResult>& runs) {
 ReportTable condition_table(const ReportTable& table, const FailureCondition& condition) {
   std::vector<const RunResult*> in;
   for (const RunResult* r : table.runs)
-    if (r->town == condition.town && r->sensor == condition.sensor) in.push_back(r);
+    if (r->town == condition.town && r->new_sensor() == condition.new_sensor) in.push_back(r);
   ReportTable t = group_runs(in, [](const RunResult& r) {
     const std::string prefix = r.town + "-";
     return r.suite.size() > prefix.size() && r.suite.compare(0, prefix.size(), prefix) == 0
@@ -603,13 +631,13 @@ std::string render_markdown(const ReportTable& table, const std::vector<MetricSe
     }
     std::string names, tables;
     for (const FailureCondition& c : failure_conditions()) {
-      names += (names.empty() ? "" : ", ") + c.name + " (" + c.town + ", " + c.sensor + " sensor)";
+      names += (names.empty() ? "" : ", ") + c.name + " (" + c.town + ", " + c.sensor + ")";
       ReportTable t = condition_table(table, c);
       if (t.labels.empty()) continue;
       if (!tables.empty()) tables += '\n';
       tables += render_set_table(t, set,
                                  set.title + ", " + c.name + " (" + c.town + ", " + c.sensor +
-                                     " sensor; %, mean \u00b1 sd over seeds)",
+                                     "; %, mean \u00b1 sd over seeds)",
                                  spread);
     }
     out += tables.empty() ? "## " + set.title + "\n\nno run in any condition: " + names + "\n"

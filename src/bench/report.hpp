@@ -1,8 +1,8 @@
 #pragma once
 // Comparison tables over evaluation runs (`causaldrive report`): reads the results.json files
-// that `causaldrive eval` writes, groups them by (label, suite and sensor), and renders one
-// table per metric set (rows: labels, column groups: suites, a shifted sensor's runs in
-// columns of their own) as Markdown, plus a long-format CSV. Several runs with the same
+// that `causaldrive eval` writes, groups them by (label, suite, sensor and camera weather), and
+// renders one table per metric set (rows: labels, column groups: suites, a shifted sensor's or
+// a held-out weather's runs in columns of their own) as Markdown, plus a long-format CSV. Several runs with the same
 // (label, column) are repeated seeds: mean and sample standard deviation (n - 1) over them.
 // The failure-mode set (seed 001 tables 7-9) is one table per condition instead: training
 // town, new sensor, new town (failure_conditions()), column groups the suites without their
@@ -41,13 +41,25 @@ struct RunResult {
   bool mujoco = false;  // an `eval --env` run (results.json has `env`, no `suite`)
   std::string town;             // `town`, "" when the file has none
   std::string sensor = "clean"; // `sensor` (eval.sensor), "clean" when the file has none
+  // The camera's weather (sense.camera.weather: "train", "held-out" or a set's name); "" for
+  // the BEV. Files written before eval recorded it: read off the episodes' weathers ("held-out"
+  // when every one is a held-out set, "train" when none is).
+  std::string weather;
   // Every numeric (or null) entry of `summary`; null is std::nullopt (e.g. no start delay).
   std::map<std::string, std::optional<double>> summary;
   std::vector<RunEpisode> episodes;  // `episodes`, when the file has them
 
-  // The column group of the tables: the suite, with " (SENSOR sensor)" unless clean.
+  // The column group of the tables: run_column() of its suite, sensor and weather.
   std::string column() const;
+  // A new sensor condition (seed 001's table 8): a shifted sensor, or a camera weather that is
+  // not the training pool.
+  bool new_sensor() const;
 };
+
+// The column group of a run: the suite, with " (SENSOR sensor)" unless the sensor is clean and
+// " (WEATHER weather)" for a camera weather other than the training pool ("train").
+std::string run_column(const std::string& suite, const std::string& sensor,
+                       const std::string& weather);
 
 // The results.json files under each folder (recursively, sorted by path; the folder's own one
 // included), folders in the order given. A path that is itself a file is taken as is. The same
@@ -76,11 +88,13 @@ struct MetricSet {
   bool in_all = true;         // part of `all` (the driving sets; `return` is MuJoCo-Image's)
 };
 
-// A condition of the failure-mode tables: the runs on `town` with sensor `sensor`.
+// A condition of the failure-mode tables: the runs on `town` with (or without) a new sensor
+// (RunResult::new_sensor()).
 struct FailureCondition {
   std::string name;    // training town | new sensor | new town
   std::string town;    // town-a | town-b (SPEC section 1: the training town, the new town)
-  std::string sensor;  // clean | shifted
+  bool new_sensor = false;
+  std::string sensor;  // how the headings name it: "clean sensor", "shifted sensor or ..."
 };
 
 // In the order of seed 001's tables 7, 8 and 9. Runs in none of them (town-c, a new town with

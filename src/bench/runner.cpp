@@ -15,6 +15,7 @@
 #include "device/device.hpp"
 #include "core/build_parts.hpp"
 #include "agents/observation_feed.hpp"
+#include "bench/report.hpp"
 #include "collect/expert_episode.hpp"
 #include "core/atomic_file.hpp"
 #include "core/bitplanes.hpp"
@@ -306,6 +307,8 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
                         {"checkpoint", req.checkpoint}, {"sensor", settings.eval.sensor},
                         {"device", device}};
   if (settings.eval.sensor != "clean") run["sensor_shift"] = sensor_shift_json(settings.eval);
+  // The camera's weather: its training pool, or table 8's held-out one (a column of its own).
+  if (settings.view == "camera") run["weather"] = settings.camera.weather;
 
   std::vector<EpisodeResult> results(total);
   EvalReport report;
@@ -323,15 +326,18 @@ EvalReport run_eval(const Settings& base, const EvalRequest& req) {
   spec.out = out;
   spec.subfolders = {"episodes"};
   // Folders written before eval.sensor existed hold clean runs, and before the device was
-  // recorded, CPU runs.
+  // recorded, CPU runs. Before the camera's weather was recorded (session 46) it cannot be
+  // told from the folder: such a folder is taken to be this run's.
   spec.claim = [&] {
     claim_eval_folder(out, run,
                       {"agent", "suite", "trials", "checkpoint", "sensor", "sensor_shift", "device",
-                       "inference"},
-                      [](nlohmann::json& prev) {
+                       "inference", "weather"},
+                      [&](nlohmann::json& prev) {
                         if (!prev.contains("sensor")) prev["sensor"] = "clean";
                         if (!prev.contains("device")) prev["device"] = "cpu";
                         if (!prev.contains("inference")) prev["inference"] = "batch-1";
+                        if (!prev.contains("weather") && run.contains("weather"))
+                          prev["weather"] = run["weather"];
                       });
   };
   spec.total = total;
@@ -464,10 +470,10 @@ std::string results_table(const nlohmann::json& res) {
        "| stop-go events | stall % | start delay median / p90 (s) | red lights / km "
        "| green light % | route completion % | mean speed (m/s) |\n";
   o << "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
-  const std::string sensor = res.value("sensor", "clean");
-  o << "| " << res.at("label").get<std::string>() << " | " << res.at("suite").get<std::string>()
-    << (sensor == "clean" ? "" : " (" + sensor + " sensor)") << " | "
-    << s.at("episodes").get<long>();
+  o << "| " << res.at("label").get<std::string>() << " | "
+    << run_column(res.at("suite").get<std::string>(), res.value("sensor", "clean"),
+                  res.value("weather", ""))
+    << " | " << s.at("episodes").get<long>();
   if (s.at("infrastructure_failures").get<long>() > 0)
     o << " (+" << s.at("infrastructure_failures").get<long>() << " failed)";
   o << " | " << pct("success_rate") << " | " << pct("collision_rate") << " | "

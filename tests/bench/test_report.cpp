@@ -508,6 +508,47 @@ TEST(ReportFailureModes, ShiftedRunsHaveTheirOwnColumnsAndTheLightsTable) {
   EXPECT_TRUE(has(text, "cim,town-a-regular,green_light_rate,0.5,0.353553390593,2\n")) << text;
 }
 
+// The camera's held-out weather (seed 001's table 8 for the camera) is a condition of its own:
+// read from `weather`, or, in files written before eval recorded it, off the episodes' weathers.
+TEST(ReportFailureModes, HeldOutWeatherRunsAreTheNewSensorCondition) {
+  TempDir dir("cdtest-report");
+  auto camera_run = [](double success, const std::vector<std::string>& weathers) {
+    nlohmann::json j = run("bc", "town-a-regular", "town-a", "clean", success, 1 - success, 0.0);
+    j["episodes"] = nlohmann::json::array();
+    for (size_t i = 0; i < weathers.size(); ++i)
+      j["episodes"].push_back({{"task", i}, {"outcome", "success"}, {"weather", weathers[i]}});
+    return j;
+  };
+  // Training pool, recorded and derived; held-out, recorded and derived (two seeds each).
+  nlohmann::json a = camera_run(0.8, {"clear-noon", "wet-noon"});
+  a["weather"] = "train";
+  put(dir / "runs/t0", a);
+  put(dir / "runs/t1", camera_run(0.6, {"hard-rain-noon", "clear-sunset"}));
+  nlohmann::json h = camera_run(0.3, {"clear-noon"});  // the key wins over the episodes
+  h["weather"] = "held-out";
+  put(dir / "runs/h0", h);
+  put(dir / "runs/h1", camera_run(0.1, {"soft-rain-sunset", "after-rain-dusk"}));
+  CommandResult r = test::run_cli({"report", dir / "runs", "--metrics", "outcomes,failure",
+                                   "--spread", "sd"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  EXPECT_TRUE(has(r.out, "| town-a-regular (held-out weather) success %")) << r.out;
+  std::vector<std::string> bc = cells(table_row(r.out, "Outcomes", "bc"));
+  ASSERT_GE(bc.size(), 2u) << r.out;
+  EXPECT_EQ(bc[1], "70.0 \u00b1 14.1") << "the two training-pool runs are its seeds\n" << r.out;
+  std::vector<std::string> t = cells(table_row(r.out, "Failure modes, training town", "bc"));
+  ASSERT_GE(t.size(), 2u) << r.out;
+  EXPECT_EQ(t[1], "70.0 \u00b1 14.1") << r.out;
+  std::vector<std::string> s = cells(table_row(r.out, "Failure modes, new sensor", "bc"));
+  ASSERT_GE(s.size(), 2u) << r.out;
+  EXPECT_EQ(s[1], "20.0 \u00b1 14.1") << "the held-out runs are table 8's\n" << r.out;
+  EXPECT_TRUE(has(r.out, "new sensor (town-a, shifted sensor or held-out weather")) << r.out;
+
+  // A weather that is no camera set is named.
+  put(dir / "bad", camera_run(0.5, {"clear-noon", "monsoon"}));
+  std::string line = expect_one_line_error(test::run_cli({"report", dir / "bad"}), "monsoon");
+  EXPECT_TRUE(has(line, "'monsoon'")) << line;
+}
+
 TEST(ReportFailureModes, NoRunInAnyConditionSaysSo) {
   TempDir dir("cdtest-report");
   put(dir / "run", run("bc", "town-c-regular", "town-c", "clean", 0.5, 0.5, 0.0));

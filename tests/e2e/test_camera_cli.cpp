@@ -94,6 +94,16 @@ with h5py.File(sys.argv[1], "r") as f:
   EXPECT_TRUE(new_weather.value("weather", "") == "soft-rain-sunset" ||
               new_weather.value("weather", "") == "after-rain-dusk")
       << new_weather.dump();
+  // The run records its weather setting (report's column); a folder of one weather is never
+  // resumed in another, so a run's episodes never mix two weathers.
+  EXPECT_EQ(res.value("weather", ""), "train") << res.dump();
+  EXPECT_EQ(test::read_json(run.dir() / "held/results.json").value("weather", ""), "held-out");
+  const test::CommandResult mixed = test::run_cli(
+      test::eval_args(held, "bc-oh", run.run(), run.suite(), run.dir() / "one", 1));
+  EXPECT_NE(mixed.exit_code, 0) << mixed.describe();
+  EXPECT_NE(mixed.err.find("holds another evaluation (weather \"train\", now \"held-out\")"),
+            std::string::npos)
+      << mixed.err;
   EXPECT_EQ(test::read_text(run.dir() / "one/results.json"),
             test::read_text(run.dir() / "two/results.json"));
 
