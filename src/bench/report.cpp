@@ -202,7 +202,10 @@ std::string run_column(const std::string& suite, const std::string& sensor,
 std::string RunResult::column() const { return run_column(suite, sensor, weather); }
 
 bool RunResult::new_sensor() const {
-  return sensor != "clean" || (!weather.empty() && weather != kTrainWeathers);
+  if (sensor != "clean" || weather == kHeldOutWeathers) return true;
+  const auto& sets = camera_weathers();  // one held-out set named
+  return std::any_of(sets.begin(), sets.end(),
+                     [&](const CameraWeather& c) { return c.held_out && c.name == weather; });
 }
 
 const std::vector<FailureCondition>& failure_conditions() {

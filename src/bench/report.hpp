@@ -2,8 +2,8 @@
 // Comparison tables over evaluation runs (`causaldrive report`): reads the results.json files
 // that `causaldrive eval` writes, groups them by (label, suite, sensor and camera weather), and
 // renders one table per metric set (rows: labels, column groups: suites, a shifted sensor's or
-// a held-out weather's runs in columns of their own) as Markdown, plus a long-format CSV. Several runs with the same
-// (label, column) are repeated seeds: mean and sample standard deviation (n - 1) over them.
+// a held-out weather's runs in columns of their own) as Markdown, plus a long-format CSV.
+// Several runs with the same (label, column) are repeated seeds: mean and sample standard deviation (n - 1) over them.
 // The failure-mode set (seed 001 tables 7-9) is one table per condition instead: training
 // town, new sensor, new town (failure_conditions()), column groups the suites without their
 // town prefix (regular, dense, ...).
@@ -51,8 +51,8 @@ struct RunResult {
 
   // The column group of the tables: run_column() of its suite, sensor and weather.
   std::string column() const;
-  // A new sensor condition (seed 001's table 8): a shifted sensor, or a camera weather that is
-  // not the training pool.
+  // A new sensor condition (seed 001's table 8): a shifted sensor, or a held-out camera weather
+  // (the pool or one of its sets; a training set named alone is no new sensor).
   bool new_sensor() const;
 };
 

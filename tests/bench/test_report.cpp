@@ -512,8 +512,9 @@ TEST(ReportFailureModes, ShiftedRunsHaveTheirOwnColumnsAndTheLightsTable) {
 // read from `weather`, or, in files written before eval recorded it, off the episodes' weathers.
 TEST(ReportFailureModes, HeldOutWeatherRunsAreTheNewSensorCondition) {
   TempDir dir("cdtest-report");
-  auto camera_run = [](double success, const std::vector<std::string>& weathers) {
-    nlohmann::json j = run("bc", "town-a-regular", "town-a", "clean", success, 1 - success, 0.0);
+  auto camera_run = [](double success, const std::vector<std::string>& weathers,
+                       const std::string& label = "bc") {
+    nlohmann::json j = run(label, "town-a-regular", "town-a", "clean", success, 1 - success, 0.0);
     j["episodes"] = nlohmann::json::array();
     for (size_t i = 0; i < weathers.size(); ++i)
       j["episodes"].push_back({{"task", i}, {"outcome", "success"}, {"weather", weathers[i]}});
@@ -528,6 +529,13 @@ TEST(ReportFailureModes, HeldOutWeatherRunsAreTheNewSensorCondition) {
   h["weather"] = "held-out";
   put(dir / "runs/h0", h);
   put(dir / "runs/h1", camera_run(0.1, {"soft-rain-sunset", "after-rain-dusk"}));
+  // One set named: a column of its own; a training set is no new sensor, a held-out one is.
+  nlohmann::json noon = camera_run(0.9, {"clear-noon"}, "noon");
+  noon["weather"] = "clear-noon";
+  put(dir / "runs/n0", noon);
+  nlohmann::json dusk = camera_run(0.4, {"after-rain-dusk"}, "dusk");
+  dusk["weather"] = "after-rain-dusk";
+  put(dir / "runs/d0", dusk);
   CommandResult r = test::run_cli({"report", dir / "runs", "--metrics", "outcomes,failure",
                                    "--spread", "sd"});
   ASSERT_EQ(r.exit_code, 0) << r.describe();
@@ -542,6 +550,12 @@ TEST(ReportFailureModes, HeldOutWeatherRunsAreTheNewSensorCondition) {
   ASSERT_GE(s.size(), 2u) << r.out;
   EXPECT_EQ(s[1], "20.0 \u00b1 14.1") << "the held-out runs are table 8's\n" << r.out;
   EXPECT_TRUE(has(r.out, "new sensor (town-a, shifted sensor or held-out weather")) << r.out;
+  EXPECT_TRUE(has(r.out, "| town-a-regular (clear-noon weather) success %")) << r.out;
+  EXPECT_EQ(cells(table_row(r.out, "Failure modes, training town", "noon")).at(1), "90.0")
+      << r.out;
+  EXPECT_EQ(table_row(r.out, "Failure modes, new sensor", "noon"), "") << r.out;
+  EXPECT_EQ(cells(table_row(r.out, "Failure modes, new sensor", "dusk")).at(1), "40.0") << r.out;
+  EXPECT_EQ(table_row(r.out, "Failure modes, training town", "dusk"), "") << r.out;
 
   // A weather that is no camera set is named.
   put(dir / "bad", camera_run(0.5, {"clear-noon", "monsoon"}));
