@@ -203,9 +203,8 @@ std::string RunResult::column() const { return run_column(suite, sensor, weather
 
 bool RunResult::new_sensor() const {
   if (sensor != "clean" || weather == kHeldOutWeathers) return true;
-  const auto& sets = camera_weathers();  // one held-out set named
-  return std::any_of(sets.begin(), sets.end(),
-                     [&](const CameraWeather& c) { return c.held_out && c.name == weather; });
+  const CameraWeather* set = find_camera_weather(weather);  // one held-out set named
+  return set && set->held_out;
 }
 
 const std::vector<FailureCondition>& failure_conditions() {
@@ -404,10 +403,8 @@ RunResult load_result(const std::string& path) {
     for (const nlohmann::json& e : *eps) {
       if (!e.is_object()) throw DataError(path + ": an entry of 'episodes' is not an object");
       if (auto w = e.find("weather"); w != e.end() && w->is_string() && !w->get<std::string>().empty()) {
-        const auto& sets = camera_weathers();
-        auto set = std::find_if(sets.begin(), sets.end(),
-                                [&](const CameraWeather& c) { return c.name == w->get<std::string>(); });
-        if (set == sets.end())
+        const CameraWeather* set = find_camera_weather(w->get<std::string>());
+        if (!set)
           throw DataError(path + ": an episode's weather '" + w->get<std::string>() +
                           "' is not a camera weather set");
         ++(set->held_out ? held_out : training);

@@ -58,12 +58,16 @@ const CameraWeather& episode_weather(const std::string& setting, uint64_t seed) 
   return *pool[derive_seed(seed, 7) % pool.size()];
 }
 
+const CameraWeather* find_camera_weather(const std::string& name) {
+  for (const CameraWeather& w : camera_weathers())
+    if (w.name == name) return &w;
+  return nullptr;
+}
+
 const CameraWeather& camera_weather(const std::string& name) {
+  if (const CameraWeather* w = find_camera_weather(name)) return *w;
   std::string known;
-  for (const CameraWeather& w : camera_weathers()) {
-    if (w.name == name) return w;
-    known += (known.empty() ? "" : ", ") + w.name;
-  }
+  for (const CameraWeather& w : camera_weathers()) known += (known.empty() ? "" : ", ") + w.name;
   throw ConfigError("sense.camera.weather: unknown weather '" + name + "' (known: " +
                     kTrainWeathers + ", " + kHeldOutWeathers + ", " + known + ")");
 }

@@ -39,6 +39,8 @@ struct CameraWeather {
 const std::vector<CameraWeather>& camera_weathers();
 // Throws ConfigError naming the known sets.
 const CameraWeather& camera_weather(const std::string& name);
+// The set of that name, or nullptr (a pool's name is no set).
+const CameraWeather* find_camera_weather(const std::string& name);
 std::vector<std::string> camera_weather_names();
 // `sense.camera.weather` names one set, or a pool that each episode draws one set from: "train"
 // (the four training sets) or "held-out" (the two held out: table 8's new weather).
