@@ -11,6 +11,12 @@ namespace cd {
 GlContext::GlContext(int width, int height) : width_(width), height_(height) {
   if (width < 1 || height < 1) throw ConfigError("a GL frame needs a positive width and height");
   setenv("LP_NUM_THREADS", "0", 0);
+  // Mesa's on-disk shader cache writes from a thread of its own. A worker that made its
+  // context and then forks an episode's process (core/worker_pool) would hand the child that
+  // queue's lock and condition variable mid-use, without the thread: the child's first shader
+  // compile then waits forever (seen: a camera collection hung in pthread_cond_signal). Without
+  // the cache the context starts no thread; a shader is compiled once per context instead.
+  setenv("MESA_SHADER_CACHE_DISABLE", "true", 1);
   OSMesaContext ctx = OSMesaCreateContextExt(OSMESA_RGBA, 24, 8, 0, nullptr);
   if (ctx == nullptr) throw SimError("cannot create an OSMesa GL context for offscreen rendering");
   ctx_ = ctx;

@@ -16,8 +16,10 @@ class GlContext {
  public:
   // Throws SimError when no context can be made. llvmpipe draws in the calling thread
   // (LP_NUM_THREADS=0 unless the environment says otherwise): a small frame gains nothing from
-  // threads, the trainer beside us keeps its cores, a forked worker inherits no thread, and the
-  // bytes of a frame do not depend on a thread count.
+  // threads, the trainer beside us keeps its cores, and the bytes of a frame do not depend on a
+  // thread count. Mesa's shader cache on disk is off (MESA_SHADER_CACHE_DISABLE, set always):
+  // it runs a thread, and a process holding a context must fork safely (core/worker_pool
+  // forks each episode from a worker that made its world), so a context starts no thread.
   GlContext(int width, int height);
   ~GlContext();
   GlContext(const GlContext&) = delete;

@@ -4,8 +4,14 @@
 #include "sense/camera.hpp"
 
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <thread>
 #include <cmath>
 #include <map>
 #include <string>
@@ -374,6 +380,47 @@ std::vector<bool> covered(CameraRenderer& renderer, const CameraScene& scene) {
       mask[size_t(row) * c.width + col] = a.r != b.r || a.g != b.g || a.b != b.b;
     }
   return mask;
+}
+
+int threads_of_this_process() {
+  int n = 0;
+  for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator("/proc/self/task")) ++n;
+  return n;
+}
+
+// collect and eval make the world (and its camera) in a worker, then fork each episode's
+// process from it (core/worker_pool): a GL context must start no thread a child would lose
+// (Mesa's shader-cache thread once hung a collection), and the child must render the parent's
+// bytes.
+TEST(CameraFork, AContextStartsNoThreadAndAForkedChildRendersTheSameBytes) {
+  const int before = threads_of_this_process();
+  RoadMap none;
+  CameraRenderer renderer(none, config());
+  const Frame parent = render(renderer, car_ahead());
+  EXPECT_EQ(threads_of_this_process(), before);
+  for (int child = 0; child < 3; ++child) {
+    const pid_t pid = fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+      CameraScene scene = car_ahead();
+      scene.vehicles[0].colour = 0x00ff00;  // a new colour: GL draws again, not a cached frame
+      render(renderer, scene);
+      _exit(render(renderer, car_ahead()).bytes() == parent.bytes() ? 0 : 3);
+    }
+    int status = 0;
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    while (waitpid(pid, &status, WNOHANG) == 0) {
+      if (std::chrono::steady_clock::now() > deadline) {
+        kill(pid, SIGKILL);
+        waitpid(pid, &status, 0);
+        FAIL() << "the forked child did not finish rendering in 60 s (a GL lock held by a lost "
+                  "thread?)";
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    ASSERT_TRUE(WIFEXITED(status));
+    EXPECT_EQ(WEXITSTATUS(status), 0) << "the child's frame differs from the parent's";
+  }
 }
 
 TEST(CameraRender, AWeatherChangesTheColoursButNotWhereAnythingIs) {
