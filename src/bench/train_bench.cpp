@@ -10,6 +10,7 @@
 #include "core/error.hpp"
 #include "methods/policy_family.hpp"
 #include "nn/policy_nets.hpp"
+#include "device/cpu_memory.hpp"
 #include "device/device.hpp"
 
 namespace cd {
@@ -17,6 +18,14 @@ namespace cd {
 nlohmann::json bench_train_step(const TrainBenchOptions& o) {
   if (o.batch < 1 || o.steps < 1 || o.warmup < 0)
     throw ConfigError("bench train: --batch and --steps must be >= 1, --warmup >= 0");
+  if (o.huge_pages != "on" && o.huge_pages != "off" && o.huge_pages != "both")
+    throw ConfigError("bench train: --huge-pages is on, off or both, not '" + o.huge_pages + "'");
+  const bool allocator = use_huge_pages_for_cpu_tensors();
+  if (o.huge_pages == "both" && !allocator)
+    throw ConfigError("bench train: --huge-pages both needs the huge-page allocator, which "
+                      "CAUSALDRIVE_HUGE_PAGES=0 turned off");
+  const bool previous = huge_pages_on();
+  set_huge_pages(allocator && o.huge_pages != "off");
   Settings s;
   s.model.backbone = o.backbone;
   s.model.history = o.history;
@@ -64,11 +73,35 @@ nlohmann::json bench_train_step(const TrainBenchOptions& o) {
     if (i == 0) first_loss = l.item<double>();
   }
   sync();
-  const auto t0 = std::chrono::steady_clock::now();
   torch::Tensor last;
-  for (int i = 0; i < o.steps; ++i) last = step();
-  sync();
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  // The timed steps: `steps` in one block, or for --huge-pages both, blocks of up to 5 steps
+  // alternating off and on until each has had `steps`.
+  auto timed = [&](int n) {
+    sync();
+    const auto t0 = std::chrono::steady_clock::now();
+    for (int i = 0; i < n; ++i) last = step();
+    sync();
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  };
+  nlohmann::json huge;
+  double seconds = 0;
+  if (o.huge_pages == "both") {
+    double off = 0;
+    for (int done = 0; done < o.steps;) {
+      const int n = std::min(5, o.steps - done);
+      set_huge_pages(false);
+      off += timed(n);
+      set_huge_pages(true);
+      seconds += timed(n);
+      done += n;
+    }
+    const double per_off = static_cast<double>(o.batch) * o.steps / off,
+                 per_on = static_cast<double>(o.batch) * o.steps / seconds;
+    huge = {{"off_samples_per_s", per_off}, {"on_samples_per_s", per_on}, {"ratio", per_on / per_off}};
+  } else {
+    seconds = timed(o.steps);
+    huge = huge_pages_on() ? "on" : "off";
+  }
   if (o.warmup == 0) first_loss = last.item<double>();
 
   // Where a step's time goes, from a few more steps with the device synchronised between the
@@ -95,6 +128,7 @@ nlohmann::json bench_train_step(const TrainBenchOptions& o) {
     backward += since(b, c);
     optimizer += since(c, d);
   }
+  set_huge_pages(previous);
   const nlohmann::json phases = {{"steps", phase_steps},
                                  {"forward_ms", forward / phase_steps},
                                  {"backward_ms", backward / phase_steps},
@@ -110,7 +144,8 @@ nlohmann::json bench_train_step(const TrainBenchOptions& o) {
           {"seconds", seconds},
           {"first_loss", first_loss},
           {"runtime", dev.record()},
-          {"phases", phases}};
+          {"phases", phases},
+          {"huge_pages", huge}};
 }
 
 }  // namespace cd

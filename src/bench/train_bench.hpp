@@ -21,12 +21,18 @@ struct TrainBenchOptions {
   int warmup = 5;
   int threads = 0;  // torch threads (0: torch's default, all cores)
   uint64_t seed = 0;
+  // Large CPU tensors on huge pages (device/cpu_memory.hpp): "on", "off", or "both": the timed
+  // steps alternate between the two in blocks, and "huge_pages" reports each and their ratio.
+  std::string huge_pages = "on";
 };
 
 // {"method", "backbone", "device", "precision", "batch", "steps", "parameters",
 //  "samples_per_s", "seconds", "first_loss", "runtime",
 //  "phases": {"steps", "forward_ms", "backward_ms", "optimizer_ms"}: up to 10 more steps with the
-//  device synchronised between the phases, after the timed ones}
+//  device synchronised between the phases, after the timed ones,
+//  "huge_pages": "on" | "off" (off when the allocator is not installed: CAUSALDRIVE_HUGE_PAGES=0),
+//  or for "both" {"off_samples_per_s", "on_samples_per_s", "ratio": on / off}, and the top
+//  "samples_per_s" is on's}
 nlohmann::json bench_train_step(const TrainBenchOptions& o);
 
 }  // namespace cd

@@ -156,6 +156,10 @@ void add_bench(CLI::App& app) {
       ->check(CLI::NonNegativeNumber);
   train->add_option("--size", tr->height, "frame height and width in pixels (default 64)")
       ->check(CLI::PositiveNumber);
+  train->add_option("--huge-pages", tr->huge_pages,
+                    "large CPU tensors on huge pages: on (default), off, or both (alternating, "
+                    "with their ratio)")
+      ->check(CLI::IsMember({"on", "off", "both"}));
   train->add_flag("--json", *json, "print one JSON object");
   train->callback([=] {
     TrainBenchOptions o = *tr;
@@ -171,6 +175,11 @@ void add_bench(CLI::App& app) {
                 o.method.c_str(), o.backbone.c_str(), r["device"].get<std::string>().c_str(),
                 r["precision"].get<std::string>().c_str(), o.batch,
                 r["samples_per_s"].get<double>(), o.steps, r["parameters"].get<long>());
+    if (r["huge_pages"].is_object())
+      std::printf("huge pages: %.0f samples/s off, %.0f on (ratio %.2f)\n",
+                  r["huge_pages"]["off_samples_per_s"].get<double>(),
+                  r["huge_pages"]["on_samples_per_s"].get<double>(),
+                  r["huge_pages"]["ratio"].get<double>());
   });
 }
 
