@@ -390,6 +390,10 @@ secondary_step() {
 probe_step() {  # the probe's row (protocol section 11): each trained run of a history method
   local m s run
   only_section7 probe || return
+  if [[ $VIEW == camera ]]; then  # causaldrive probe moves a BEV's content; it refuses RGB frames
+    echo "error: VIEW=camera: the copycat probe runs on the BEV's frames only (docs/camera.md)" >&2
+    return 1
+  fi
   for m in $METHODS; do
     [[ $m == bc-so ]] && continue  # no history to probe
     for s in $(seeds_of "$m"); do

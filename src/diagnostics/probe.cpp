@@ -75,6 +75,13 @@ ProbeReport run_probe(const ProbeOptions& o) {
                       " holds '" + ck.method + "', which sees " + std::to_string(K) + " frame");
   EpisodeSet set = load_episode_set(o.data);
   require_same_frames(set, ck.input, o.data);
+  // The moving history moves a bird's-eye view's content ahead by metres per pixel; a
+  // perspective frame has no such scale (it would need the scene drawn again from farther back).
+  if (set.domain != kDrivingDomain || set.layout != FrameLayout::BitPlanes)
+    throw ConfigError("the copycat probe makes its moving history by moving a bird's-eye view's "
+                      "content ahead; " + o.data + " holds " +
+                      (set.domain == kDrivingDomain ? "front-camera" : "MuJoCo-Image") +
+                      " frames, which it cannot move so (not supported)");
 
   ProbeReport r;
   r.checkpoint = o.checkpoint;

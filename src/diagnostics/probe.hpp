@@ -46,7 +46,9 @@ struct ProbeReport {
   ProbeGroup path_free, blocked;
 };
 
-// Throws ConfigError for a policy without history (K == 1), DataError for missing or damaged
+// Throws ConfigError for a policy without history (K == 1) or data that is not the BEV (the
+// front camera's or MuJoCo-Image's frames: the moving history above needs a top view with a
+// metric scale), DataError for missing or damaged
 // checkpoint or data, or data whose BEV format differs from the checkpoint's.
 ProbeReport run_probe(const ProbeOptions& options);
 

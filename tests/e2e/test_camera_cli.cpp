@@ -127,6 +127,14 @@ assert (w, h) == (3 * 96 * 2 + 2 * 2, 32 * 2), (w, h)
   const test::CommandResult diag =
       test::run_cli_ok({"diagnose", "--checkpoint", run.run(), "--data", run.data(), "--json"});
   EXPECT_GT(json::parse(diag.out)["frames"].get<int>(), 0) << diag.out;
+  // The probe's moving history moves a BEV's content ahead: it refuses the camera's frames in
+  // one line (it once reported a history effect of exactly 0 on them).
+  const test::CommandResult probe =
+      test::run_cli({"probe", "--checkpoint", run.run(), "--data", run.data()});
+  EXPECT_NE(probe.exit_code, 0) << probe.describe();
+  EXPECT_NE(probe.err.find("holds front-camera frames, which it cannot move so"),
+            std::string::npos)
+      << probe.err;
   test::run_cli_ok(test::eval_args(run.config(), "bc-oh", run.run(), run.suite(),
                                    run.dir() / "rec", 1, {"--record"}));
   test::run_cli_ok({"report", run.dir() / "rec", "--html", run.dir() / "page.html", "--episodes", "0"});
