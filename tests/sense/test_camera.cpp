@@ -9,14 +9,13 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <chrono>
 #include <filesystem>
-#include <thread>
 #include <cmath>
 #include <map>
 #include <string>
 #include <vector>
 
+#include "../support/test_support.hpp"
 #include "core/error.hpp"
 
 namespace cd {
@@ -408,15 +407,11 @@ TEST(CameraFork, AContextStartsNoThreadAndAForkedChildRendersTheSameBytes) {
       _exit(render(renderer, car_ahead()).bytes() == parent.bytes() ? 0 : 3);
     }
     int status = 0;
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-    while (waitpid(pid, &status, WNOHANG) == 0) {
-      if (std::chrono::steady_clock::now() > deadline) {
-        kill(pid, SIGKILL);
-        waitpid(pid, &status, 0);
-        FAIL() << "the forked child did not finish rendering in 60 s (a GL lock held by a lost "
-                  "thread?)";
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    if (!test::wait_child(pid, 60, &status)) {
+      kill(pid, SIGKILL);
+      waitpid(pid, &status, 0);
+      FAIL() << "the forked child did not finish rendering in 60 s (a GL lock held by a lost "
+                "thread?)";
     }
     ASSERT_TRUE(WIFEXITED(status));
     EXPECT_EQ(WEXITSTATUS(status), 0) << "the child's frame differs from the parent's";

@@ -196,6 +196,20 @@ inline int open_out(const std::string& path) {
 
 }  // namespace detail
 
+// Waits up to timeout_s for the child `pid` to end: true with its wait status in *status, false
+// while it still runs (the caller kills it).
+inline bool wait_child(pid_t pid, double timeout_s, int* status) {
+  const auto deadline =
+      std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  while (true) {
+    const pid_t w = ::waitpid(pid, status, WNOHANG);
+    if (w == pid) return true;
+    if (w < 0) throw std::runtime_error("waitpid failed");
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+}
+
 // Runs argv (argv[0] an absolute path) with stdin from /dev/null and stdout/stderr captured
 // through files; kills it after timeout_s. cwd: the folder to run in (empty: the current one).
 // The command runs in a process group of its own: a crash injected into it that kills its
@@ -214,18 +228,10 @@ inline CommandResult run_command(const std::vector<std::string>& argv, const std
   ::setpgid(pid, pid);  // also from the parent, so the group exists before any kill
   CommandResult r;
   int status = 0;
-  auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-  while (true) {
-    pid_t w = ::waitpid(pid, &status, WNOHANG);
-    if (w == pid) break;
-    if (w < 0) throw std::runtime_error("waitpid failed");
-    if (std::chrono::steady_clock::now() > deadline) {
-      r.timed_out = true;
-      ::kill(-pid, SIGKILL);
-      ::waitpid(pid, &status, 0);
-      break;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  if (!wait_child(pid, timeout_s, &status)) {
+    r.timed_out = true;
+    ::kill(-pid, SIGKILL);
+    ::waitpid(pid, &status, 0);
   }
   r.exited = WIFEXITED(status);
   if (r.exited) r.exit_code = WEXITSTATUS(status);
