@@ -20,7 +20,8 @@
 #                                # a run without weights here (not trained yet, or over 5 MB and
 #                                # trained elsewhere) is named and skipped, for a later call
 #   scripts/verdicts.sh probe    # the copycat probe (causaldrive probe) of every trained
-#                                # history run, on the data folder it did not train on
+#                                # history run, on the data folder it did not train on (the
+#                                # camera's: its episodes replayed, docs/methods.md)
 #   scripts/verdicts.sh gpu-list # for a lent GPU (docs/gpu.md): GPU_DIR/runs.txt lists every
 #                                # run of train, ablations and the device check (cuda/) not
 #                                # trained yet (residual's train runs are the CPU's and
@@ -390,10 +391,6 @@ secondary_step() {
 probe_step() {  # the probe's row (protocol section 11): each trained run of a history method
   local m s run
   only_section7 probe || return
-  if [[ $VIEW == camera ]]; then  # causaldrive probe moves a BEV's content; it refuses RGB frames
-    echo "error: VIEW=camera: the copycat probe runs on the BEV's frames only (docs/camera.md)" >&2
-    return 1
-  fi
   for m in $METHODS; do
     [[ $m == bc-so ]] && continue  # no history to probe
     for s in $(seeds_of "$m"); do

@@ -16,7 +16,10 @@ void add_probe(CLI::App& app) {
                "moving and a static history");
   sub->add_option("--checkpoint", opt->checkpoint, "checkpoint folder of a history policy (bc-oh, residual, fca, keyframe, hd, dagger)")
       ->required();
-  sub->add_option("--data,-d", opt->data, "data folder of `causaldrive collect`")->required();
+  sub->add_option("--data,-d", opt->data,
+                 "data folder of `causaldrive collect` (a camera folder is replayed with its "
+                 "collect.json)")
+      ->required();
   sub->add_option("--max-frames", opt->max_frames,
                   "probe at most this many stopped frames, spread evenly (0 = all)")
       ->check(CLI::NonNegativeNumber);

@@ -174,6 +174,7 @@ EpisodeSummary ExpertRecorder::run(int index, uint64_t seed, EpisodeData& d, Epi
   StepResult r;
   while (r.outcome == Outcome::Running) {
     Control label = record_step(d, augment);
+    if (observer_) observer_(static_cast<long>(d.frames()) - 1);
     if (!png_dir.empty()) {
       char name[64];
       std::snprintf(name, sizeof name, "/frame_%05zu.png", d.frames() - 1);

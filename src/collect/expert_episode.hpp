@@ -3,6 +3,7 @@
 // action, the expert's action as the label, the ground-truth causes. With noise injection
 // the executed action is replaced for short windows while the label stays the expert's.
 #include <cstdint>
+#include <functional>
 #include <string>
 
 #include "app/settings.hpp"
@@ -74,10 +75,18 @@ class ExpertRecorder {
   // pose and its steer label be the correcting one (the returned control stays the expert's).
   Control record_step(EpisodeData& data, Rng* augment = nullptr) const;
 
+  // Called by run() once per recorded step with the step's index, after its frame is recorded
+  // and before the world steps: the world then holds the state that frame shows (the camera
+  // probe replays a collected episode so, diagnostics/probe.hpp).
+  void set_frame_observer(std::function<void(long frame)> observer) {
+    observer_ = std::move(observer);
+  }
+
  private:
   World& world_;
   Settings settings_;
   Autopilot expert_;
+  std::function<void(long)> observer_;
 };
 
 // The seed of episode `index` of a collection run.

@@ -4,13 +4,21 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
+#include <functional>
+#include <memory>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "app/settings.hpp"
+#include "collect/expert_episode.hpp"
 #include "core/error.hpp"
+#include "core/atomic_file.hpp"
+#include "data/h5_episode.hpp"
 #include "datasets/episode_set.hpp"
 #include "inference/policy_runner.hpp"
+#include "world/world.hpp"
 
 namespace cd {
 
@@ -51,7 +59,61 @@ json group_json(const ProbeGroup& g) {
           {"moving_minus_static", value(g.moving_minus_static)}};
 }
 
+// Replays the episodes of a camera data folder: the collection is deterministic for an
+// episode's seed, so the expert, its noise and the traffic drive them again as recorded.
+class CameraReplay {
+ public:
+  explicit CameraReplay(const std::string& data) {
+    const std::string manifest = data + "/collect.json";
+    if (!std::filesystem::exists(manifest))
+      throw DataError(manifest + " is missing: the camera's copycat probe replays the collected "
+                      "episodes with the settings it records");
+    try {
+      settings_ = settings_from_json(json::parse(read_file_bytes(manifest)).at("settings"),
+                                     manifest);
+    } catch (const DataError&) {
+      throw;
+    } catch (const std::exception& e) {
+      throw DataError(manifest + " is damaged (" + e.what() + ")");
+    }
+    world_ = std::make_unique<World>(settings_);
+  }
+
+  // Drives the episode of `file` (of `frames` frames) again and calls at(world, t) for each
+  // frame t of `at_frames` (ascending) while the world holds that frame's state.
+  void run(const std::string& file, int frames, const std::vector<int>& at_frames,
+           const std::function<void(const World&, int)>& at) {
+    const EpisodeMeta meta = read_episode_meta(file);
+    const auto index = meta.extra.find("episode_index");
+    ExpertRecorder recorder(*world_, settings_);
+    size_t next = 0;
+    recorder.set_frame_observer([&](long t) {
+      if (next < at_frames.size() && at_frames[next] == t) at(*world_, at_frames[next++]);
+    });
+    EpisodeData data;
+    EpisodeMeta replayed;
+    const EpisodeSummary s = recorder.run(
+        index == meta.extra.end() ? 0 : std::atoi(index->second.c_str()), meta.seed, data,
+        replayed);
+    if (s.frames != frames || s.outcome != meta.outcome)
+      throw DataError("replaying " + file + " gave " + std::to_string(s.frames) + " frames, " +
+                      s.outcome + ", where it holds " + std::to_string(frames) + ", " +
+                      meta.outcome + ": the camera's copycat probe needs the replay");
+  }
+
+ private:
+  Settings settings_;
+  std::unique_ptr<World> world_;
+};
+
 }  // namespace
+
+Pose2 pose_behind(const Pose2& pose, double metres) {
+  Pose2 p = pose;
+  p.pos.x -= metres * std::cos(pose.heading);
+  p.pos.y -= metres * std::sin(pose.heading);
+  return p;
+}
 
 void shift_frame_up(const unsigned char* current, int channels, int height, int width, int shift,
                     unsigned char* out) {
@@ -75,13 +137,13 @@ ProbeReport run_probe(const ProbeOptions& o) {
                       " holds '" + ck.method + "', which sees " + std::to_string(K) + " frame");
   EpisodeSet set = load_episode_set(o.data);
   require_same_frames(set, ck.input, o.data);
-  // The moving history moves a bird's-eye view's content ahead by metres per pixel; a
-  // perspective frame has no such scale (it would need the scene drawn again from farther back).
-  if (set.domain != kDrivingDomain || set.layout != FrameLayout::BitPlanes)
-    throw ConfigError("the copycat probe makes its moving history by moving a bird's-eye view's "
-                      "content ahead; " + o.data + " holds " +
-                      (set.domain == kDrivingDomain ? "front-camera" : "MuJoCo-Image") +
-                      " frames, which it cannot move so (not supported)");
+  // The BEV's moving history moves its content ahead by metres per pixel; the camera's is the
+  // scene drawn again from behind, on the collection's episodes replayed. MuJoCo-Image's
+  // frames have neither.
+  if (set.domain != kDrivingDomain)
+    throw ConfigError("the copycat probe needs driving frames; " + o.data +
+                      " holds MuJoCo-Image frames (not supported)");
+  const bool camera = set.layout == FrameLayout::Bytes;
 
   ProbeReport r;
   r.checkpoint = o.checkpoint;
@@ -94,12 +156,13 @@ ProbeReport run_probe(const ProbeOptions& o) {
   r.stopped_below = o.stopped_below;
   r.dt = set.dt;
   r.metres_per_pixel = set.metres_per_pixel;
+  r.moving_history = camera ? "replayed" : "shifted";
   r.frames = set.total_frames();
 
   struct Candidate {
     int e, t;
   };
-  std::vector<Candidate> stopped;
+  std::vector<Candidate> stopped;  // in episode and frame order
   const int first = (K - 1) * stride;
   for (int e = 0; e < static_cast<int>(set.episodes.size()); ++e) {
     const PackedEpisode& ep = set.episodes[e];
@@ -125,25 +188,58 @@ ProbeReport run_probe(const ProbeOptions& o) {
     real_ptr[k] = real.data() + k * fv;
     moving_ptr[k] = moving.data() + k * fv;
   }
+  // The metres the ego would have driven from history slot k to now.
+  auto lag_metres = [&](int k) { return o.moving_speed * (K - 1 - k) * stride * set.dt; };
   Accumulator free_acc, blocked_acc;
-  for (const Candidate& c : probed) {
-    const PackedEpisode& ep = set.episodes[c.e];
-    for (int k = 0; k < K; ++k)
-      set.planes255(c.e, c.t - (K - 1 - k) * stride, real.data() + k * fv);
+  // Frame t of episode e with its real history in `real` and its moving one in `moving`.
+  auto probe_frame = [&](int e, int t) {
+    const PackedEpisode& ep = set.episodes[e];
     const uint8_t* current = real.data() + (K - 1) * fv;
-    for (int k = 0; k < K; ++k) {
-      const int lag_steps = (K - 1 - k) * stride;
-      const int shift = static_cast<int>(
-          std::lround(o.moving_speed * lag_steps * set.dt / set.metres_per_pixel));
-      shift_frame_up(current, set.channels, set.height, set.width, shift, moving.data() + k * fv);
-      static_ptr[k] = current;
-    }
-    const double speed = ep.speed[c.t];
-    const int command = ep.command[c.t];
+    for (int k = 0; k < K; ++k) static_ptr[k] = current;
+    const double speed = ep.speed[t];
+    const int command = ep.command[t];
     const double out_real = policy.run(real_ptr.data(), speed, command).scalar();
     const double out_moving = policy.run(moving_ptr.data(), speed, command).scalar();
     const double out_static = policy.run(static_ptr.data(), speed, command).scalar();
-    (ep.path_free[c.t] >= 0.5f ? free_acc : blocked_acc).add(out_real, out_moving, out_static);
+    (ep.path_free[t] >= 0.5f ? free_acc : blocked_acc).add(out_real, out_moving, out_static);
+  };
+  auto load_real = [&](int e, int t) {
+    for (int k = 0; k < K; ++k) set.planes255(e, t - (K - 1 - k) * stride, real.data() + k * fv);
+  };
+  if (!camera) {
+    for (const Candidate& c : probed) {
+      load_real(c.e, c.t);
+      const uint8_t* current = real.data() + (K - 1) * fv;
+      for (int k = 0; k < K; ++k) {
+        const int shift = static_cast<int>(std::lround(lag_metres(k) / set.metres_per_pixel));
+        shift_frame_up(current, set.channels, set.height, set.width, shift,
+                       moving.data() + k * fv);
+      }
+      probe_frame(c.e, c.t);
+    }
+  } else {
+    CameraReplay replay(o.data);
+    std::vector<uint8_t> drawn(fv);
+    size_t i = 0;
+    while (i < probed.size()) {
+      const int e = probed[i].e;
+      std::vector<int> frames;
+      for (; i < probed.size() && probed[i].e == e; ++i) frames.push_back(probed[i].t);
+      const std::string file = o.data + "/" + set.episodes[e].file;
+      replay.run(file, set.episodes[e].frames, frames, [&](const World& world, int t) {
+        load_real(e, t);
+        render_stored(world, drawn.data());
+        if (std::memcmp(drawn.data(), real.data() + (K - 1) * fv, fv) != 0)
+          throw DataError("replaying " + file + " drew frame " + std::to_string(t) +
+                          " otherwise than it was recorded (another build, or settings other "
+                          "than collect.json's): the camera's copycat probe needs the replay");
+        const Pose2 ego = world.ego().pose;
+        for (int k = 0; k < K; ++k)
+          world.render_from(pose_behind(ego, lag_metres(k)), moving.data() + k * fv);
+        probe_frame(e, t);
+      });
+      ++r.replayed_episodes;
+    }
   }
   r.path_free = free_acc.mean();
   r.blocked = blocked_acc.mean();
@@ -158,6 +254,8 @@ json probe_report_json(const ProbeReport& r) {
           {"history_stride", r.stride},
           {"output", r.output},
           {"moving_speed", r.moving_speed},
+          {"moving_history", r.moving_history},
+          {"replayed_episodes", r.replayed_episodes},
           {"stopped_below", r.stopped_below},
           {"frames", r.frames},
           {"stopped_frames", r.stopped_frames},
@@ -167,15 +265,19 @@ json probe_report_json(const ProbeReport& r) {
 }
 
 std::string probe_report_table(const ProbeReport& r) {
-  char buf[512];
+  char buf[768];
   std::string s;
+  const std::string how = r.moving_history == "replayed"
+                              ? "the scene drawn from behind on " +
+                                    std::to_string(r.replayed_episodes) + " replayed episodes"
+                              : "the view shifted";
   std::snprintf(buf, sizeof buf,
                 "copycat probe: %s (history %d, stride %d) on %s\n"
-                "output: %s; moving history at %.1f m/s\n"
+                "output: %s; moving history at %.1f m/s, %s\n"
                 "stopped frames (speed < %.2f m/s, full history): %ld of %ld, probed %ld\n\n",
                 r.method.c_str(), r.history, r.stride, r.data.c_str(),
                 r.output == "target_speed" ? "target speed (m/s)" : "throttle - brake",
-                r.moving_speed, r.stopped_below, r.stopped_frames, r.frames, r.probed_frames);
+                r.moving_speed, how.c_str(), r.stopped_below, r.stopped_frames, r.frames, r.probed_frames);
   s += buf;
   std::snprintf(buf, sizeof buf, "%-10s %7s %9s %9s %9s %16s\n", "path", "frames", "real",
                 "moving", "static", "|moving-static|");

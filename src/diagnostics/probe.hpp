@@ -5,10 +5,19 @@
 // behind the same current frame:
 //   real    the recorded frames;
 //   moving  synthetic frames of the scene as it would have looked had the ego been driving
-//           toward it at `moving_speed`: the frame at lag L steps is the current frame with its
-//           content moved up the image (up = ahead, sense/bev.hpp) by
-//           round(moving_speed * L * dt / metres_per_pixel) pixels, rows left uncovered at the
-//           bottom set to 0;
+//           toward it at `moving_speed`, the ego moving_speed * L * dt metres behind its place
+//           at lag L steps, the rest of the scene as it is now:
+//           the BEV ("shifted"): the current frame with its content moved up the image (up =
+//             ahead, sense/bev.hpp) by round(moving_speed * L * dt / metres_per_pixel) pixels,
+//             rows left uncovered at the bottom set to 0;
+//           the front camera ("replayed"): the scene drawn again from the pose that far behind
+//             the ego on its heading (pose_behind). A camera frame has no metric scale to move,
+//             so the probe replays the folder's episodes: collection is deterministic for an
+//             episode's seed, and with collect.json's settings the expert, its noise and the
+//             traffic drive each episode again; at a probed frame the world holds the recorded
+//             state, checked byte for byte against the recorded frame. Vehicles stay where they
+//             are now, as in the BEV's shift (one behind the ego within those metres may then
+//             stand in front of the camera);
 //   static  the current frame repeated.
 // A policy that copies its own past motion accelerates under "moving" and stays put under
 // "static" whatever the scene: the history effect mean |out(moving) - out(static)| measures
@@ -18,6 +27,8 @@
 #include <string>
 
 #include <nlohmann/json_fwd.hpp>
+
+#include "core/geometry.hpp"
 
 namespace cd {
 
@@ -40,20 +51,24 @@ struct ProbeReport {
   std::string checkpoint, data, method, output;  // output: target_speed | throttle_minus_brake
   int history = 0, stride = 0;
   double moving_speed = 0, stopped_below = 0, dt = 0, metres_per_pixel = 0;
+  std::string moving_history;  // shifted (BEV) | replayed (front camera)
+  long replayed_episodes = 0;  // the camera: episodes driven again
   long frames = 0;          // frames in the data folder
   long stopped_frames = 0;  // stopped with a full history
   long probed_frames = 0;   // of those, probed (max_frames)
   ProbeGroup path_free, blocked;
 };
 
-// Throws ConfigError for a policy without history (K == 1) or data that is not the BEV (the
-// front camera's or MuJoCo-Image's frames: the moving history above needs a top view with a
-// metric scale), DataError for missing or damaged
-// checkpoint or data, or data whose BEV format differs from the checkpoint's.
+// Throws ConfigError for a policy without history (K == 1) or MuJoCo-Image data, DataError for
+// missing or damaged checkpoint or data, data whose frame format differs from the checkpoint's,
+// or (the camera) a folder without collect.json or whose replay does not give its frames.
 ProbeReport run_probe(const ProbeOptions& options);
 
 nlohmann::json probe_report_json(const ProbeReport& report);
 std::string probe_report_table(const ProbeReport& report);
+
+// `pose` moved `metres` back along its heading.
+Pose2 pose_behind(const Pose2& pose, double metres);
 
 // The synthetic moving history's frame at lag `shift` pixels: C planes of H x W bytes of
 // `current` moved up by `shift` rows, the bottom `shift` rows zero.

@@ -127,14 +127,40 @@ assert (w, h) == (3 * 96 * 2 + 2 * 2, 32 * 2), (w, h)
   const test::CommandResult diag =
       test::run_cli_ok({"diagnose", "--checkpoint", run.run(), "--data", run.data(), "--json"});
   EXPECT_GT(json::parse(diag.out)["frames"].get<int>(), 0) << diag.out;
-  // The probe's moving history moves a BEV's content ahead: it refuses the camera's frames in
-  // one line (it once reported a history effect of exactly 0 on them).
-  const test::CommandResult probe =
-      test::run_cli({"probe", "--checkpoint", run.run(), "--data", run.data()});
-  EXPECT_NE(probe.exit_code, 0) << probe.describe();
-  EXPECT_NE(probe.err.find("holds front-camera frames, which it cannot move so"),
-            std::string::npos)
-      << probe.err;
+  // The probe's moving history on the camera: the folder's episodes replayed and the scene
+  // drawn again from behind the ego. At 0 m/s the moving frames are the recorded frame (the
+  // replay is checked against it byte for byte), so the history effect is exactly 0; at 5 m/s
+  // the frames differ and so does the output.
+  auto probe = [&](const std::string& data, const std::string& speed) {
+    return test::run_cli({"probe", "--checkpoint", run.run(), "--data", data, "--moving-speed",
+                          speed, "--max-frames", "6", "--json"});
+  };
+  auto effect = [](const json& p) {
+    double sum = 0;
+    for (const char* g : {"path_free", "blocked"})
+      if (p[g]["count"].get<long>() > 0) sum += p[g]["history_effect"].get<double>();
+    return sum;
+  };
+  const test::CommandResult still = probe(run.data(), "0");
+  ASSERT_EQ(still.exit_code, 0) << still.describe();
+  const json p0 = json::parse(still.out);
+  EXPECT_EQ(p0["moving_history"], "replayed") << still.out;
+  EXPECT_GE(p0["replayed_episodes"].get<long>(), 1) << still.out;
+  EXPECT_GT(p0["probed_frames"].get<long>(), 0) << still.out;
+  EXPECT_EQ(effect(p0), 0.0) << still.out;
+  const test::CommandResult moving = probe(run.data(), "5");
+  ASSERT_EQ(moving.exit_code, 0) << moving.describe();
+  EXPECT_GT(effect(json::parse(moving.out)), 0.0) << moving.out;
+  // A folder whose record no longer gives its episodes (the expert's cruise speed changed), and
+  // one without its record, are refused in one line.
+  const std::filesystem::path copy = run.dir() / "data-copy";
+  std::filesystem::copy(run.data(), copy);
+  json manifest = test::read_json(copy / "collect.json");
+  manifest["settings"]["expert"]["cruise_speed"] = 6.0;
+  test::write_text(copy / "collect.json", manifest.dump());
+  test::expect_one_line_error(probe(copy, "5"), "the camera's copycat probe needs the replay");
+  std::filesystem::remove(copy / "collect.json");
+  test::expect_one_line_error(probe(copy, "5"), "collect.json is missing");
   test::run_cli_ok(test::eval_args(run.config(), "bc-oh", run.run(), run.suite(),
                                    run.dir() / "rec", 1, {"--record"}));
   test::run_cli_ok({"report", run.dir() / "rec", "--html", run.dir() / "page.html", "--episodes", "0"});
