@@ -79,19 +79,24 @@ class CameraReplay {
     world_ = std::make_unique<World>(settings_);
   }
 
-  // Drives the episode of `file` (of `frames` frames) again and calls at(world, t) for each
-  // frame t of `at_frames` (ascending) while the world holds that frame's state.
+  // Drives the episode of `file` (of `frames` frames) again and calls at(world, t, recorded)
+  // for each frame t of `at_frames` (ascending) while the world holds that frame's state;
+  // `recorded` is frame t as the replay recorded it (C x H x W bytes).
   void run(const std::string& file, int frames, const std::vector<int>& at_frames,
-           const std::function<void(const World&, int)>& at) {
+           const std::function<void(const World&, int, const uint8_t*)>& at) {
     const EpisodeMeta meta = read_episode_meta(file);
     const auto index = meta.extra.find("episode_index");
     ExpertRecorder recorder(*world_, settings_);
-    size_t next = 0;
-    recorder.set_frame_observer([&](long t) {
-      if (next < at_frames.size() && at_frames[next] == t) at(*world_, at_frames[next++]);
-    });
     EpisodeData data;
     EpisodeMeta replayed;
+    std::vector<uint8_t> frame;
+    size_t next = 0;
+    recorder.set_frame_observer([&](long t) {
+      if (next >= at_frames.size() || at_frames[next] != t) return;
+      frame.resize(data.frame_bytes());
+      data.frame_planes(static_cast<size_t>(t), frame.data());
+      at(*world_, at_frames[next++], frame.data());
+    });
     const EpisodeSummary s = recorder.run(
         index == meta.extra.end() ? 0 : std::atoi(index->second.c_str()), meta.seed, data,
         replayed);
@@ -219,23 +224,26 @@ ProbeReport run_probe(const ProbeOptions& o) {
     }
   } else {
     CameraReplay replay(o.data);
-    std::vector<uint8_t> drawn(fv);
     size_t i = 0;
     while (i < probed.size()) {
       const int e = probed[i].e;
       std::vector<int> frames;
       for (; i < probed.size() && probed[i].e == e; ++i) frames.push_back(probed[i].t);
       const std::string file = o.data + "/" + set.episodes[e].file;
-      replay.run(file, set.episodes[e].frames, frames, [&](const World& world, int t) {
+      const PackedEpisode& ep = set.episodes[e];
+      replay.run(file, ep.frames, frames, [&](const World& world, int t, const uint8_t* drawn) {
         load_real(e, t);
-        render_stored(world, drawn.data());
-        if (std::memcmp(drawn.data(), real.data() + (K - 1) * fv, fv) != 0)
+        if (std::memcmp(drawn, real.data() + (K - 1) * fv, fv) != 0)
           throw DataError("replaying " + file + " drew frame " + std::to_string(t) +
                           " otherwise than it was recorded (another build, or settings other "
                           "than collect.json's): the camera's copycat probe needs the replay");
-        const Pose2 ego = world.ego().pose;
+        // The pose the frame was drawn from: the ego's, or collect.augment's shifted one.
+        const size_t a = 2 * static_cast<size_t>(t);
+        const Pose2 seen = ep.augment.empty() ? world.ego().pose
+                                              : shifted_pose(world.ego().pose, ep.augment[a],
+                                                             ep.augment[a + 1]);
         for (int k = 0; k < K; ++k)
-          world.render_from(pose_behind(ego, lag_metres(k)), moving.data() + k * fv);
+          world.render_from(pose_behind(seen, lag_metres(k)), moving.data() + k * fv);
         probe_frame(e, t);
       });
       ++r.replayed_episodes;

@@ -11,13 +11,14 @@
 //             ahead, sense/bev.hpp) by round(moving_speed * L * dt / metres_per_pixel) pixels,
 //             rows left uncovered at the bottom set to 0;
 //           the front camera ("replayed"): the scene drawn again from the pose that far behind
-//             the ego on its heading (pose_behind). A camera frame has no metric scale to move,
+//             the one the frame was drawn from (the ego's, or collect.augment's shifted pose)
+//             on its heading (pose_behind). A camera frame has no metric scale to move,
 //             so the probe replays the folder's episodes: collection is deterministic for an
 //             episode's seed, and with collect.json's settings the expert, its noise and the
 //             traffic drive each episode again; at a probed frame the world holds the recorded
-//             state, checked byte for byte against the recorded frame. Vehicles stay where they
-//             are now, as in the BEV's shift (one behind the ego within those metres may then
-//             stand in front of the camera);
+//             state, and the replay's frame is checked byte for byte against the recorded
+//             one. Vehicles stay where they are now, as in the BEV's shift (one behind the ego
+//             within those metres may then stand in front of the camera);
 //   static  the current frame repeated.
 // A policy that copies its own past motion accelerates under "moving" and stays put under
 // "static" whatever the scene: the history effect mean |out(moving) - out(static)| measures

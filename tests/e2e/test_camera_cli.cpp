@@ -151,6 +151,18 @@ assert (w, h) == (3 * 96 * 2 + 2 * 2, 32 * 2), (w, h)
   const test::CommandResult moving = probe(run.data(), "5");
   ASSERT_EQ(moving.exit_code, 0) << moving.describe();
   EXPECT_GT(effect(json::parse(moving.out)), 0.0) << moving.out;
+  // A free-mode folder with every frame drawn from collect.augment's shifted pose: the moving
+  // history stands behind that pose, so at 0 m/s it is again the recorded frame.
+  const std::string free_config = test::write_test_config(
+      run.dir(), "regular",
+      kCamera + "\n[ego]\nlateral = \"free\"\n\n[collect.augment]\nfraction = 1.0\n",
+      "free.toml");
+  const std::string free_data = run.dir() / "free-data";
+  test::run_cli_ok(test::collect_args(free_config, free_data));
+  const test::CommandResult shifted = probe(free_data, "0");
+  ASSERT_EQ(shifted.exit_code, 0) << shifted.describe();
+  EXPECT_GT(json::parse(shifted.out)["probed_frames"].get<long>(), 0) << shifted.out;
+  EXPECT_EQ(effect(json::parse(shifted.out)), 0.0) << shifted.out;
   // A folder whose record no longer gives its episodes (the expert's cruise speed changed), and
   // one without its record, are refused in one line.
   const std::filesystem::path copy = run.dir() / "data-copy";
