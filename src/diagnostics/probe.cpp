@@ -85,6 +85,10 @@ class CameraReplay {
   void run(const std::string& file, int frames, const std::vector<int>& at_frames,
            const std::function<void(const World&, int, const uint8_t*)>& at) {
     const EpisodeMeta meta = read_episode_meta(file);
+    if (const auto driver = meta.extra.find("driver"); driver != meta.extra.end())
+      throw DataError(file + " was driven by " + driver->second +
+                      " (a DAgger rollout): the camera's copycat probe replays the expert's "
+                      "episodes only");
     const auto index = meta.extra.find("episode_index");
     ExpertRecorder recorder(*world_, settings_);
     EpisodeData data;

@@ -8,6 +8,7 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -173,6 +174,21 @@ assert (w, h) == (3 * 96 * 2 + 2 * 2, 32 * 2), (w, h)
   test::expect_one_line_error(probe(copy, "5"), "the camera's copycat probe needs the replay");
   std::filesystem::remove(copy / "collect.json");
   test::expect_one_line_error(probe(copy, "5"), "collect.json is missing");
+  // A DAgger rollout (an episode driven by a policy, its "driver" attribute) is not the
+  // expert's to replay.
+  const std::filesystem::path rollout = run.dir() / "rollout-copy";
+  std::filesystem::copy(run.data(), rollout);
+  const std::string mark = run.dir() / "mark.py";
+  test::write_text(mark, "import sys, h5py\n"
+                         "for p in sys.argv[1:]:\n"
+                         "    with h5py.File(p, 'r+') as f:\n"
+                         "        f.attrs['driver'] = 'bc-oh beta 0.5'\n");
+  std::vector<std::string> mark_args{CD_PYTHON, mark};
+  for (const auto& entry : std::filesystem::directory_iterator(rollout))
+    if (entry.path().extension() == ".h5") mark_args.push_back(entry.path());
+  const test::CommandResult marked = test::run_command(mark_args);
+  ASSERT_TRUE(marked.exited && marked.exit_code == 0) << marked.describe();
+  test::expect_one_line_error(probe(rollout, "5"), "was driven by bc-oh beta 0.5 (a DAgger rollout)");
   test::run_cli_ok(test::eval_args(run.config(), "bc-oh", run.run(), run.suite(),
                                    run.dir() / "rec", 1, {"--record"}));
   test::run_cli_ok({"report", run.dir() / "rec", "--html", run.dir() / "page.html", "--episodes", "0"});
