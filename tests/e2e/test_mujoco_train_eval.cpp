@@ -66,6 +66,14 @@ TEST_F(MujocoTrainEval, CheckpointRecordsTheDomainAndTanh) {
   EXPECT_EQ(ck["settings"]["model"]["speed_loss_weight"], 0.0);
 }
 
+// The copycat probe draws a driving scene's moving history; MuJoCo-Image's frames have none,
+// and are refused in one line.
+TEST_F(MujocoTrainEval, TheCopycatProbeRefusesMujocoFrames) {
+  test::expect_one_line_error(
+      test::run_cli({"probe", "--checkpoint", *dir_ / "run_bc-oh", "--data", *dir_ / "data"}),
+      "holds MuJoCo-Image frames (not supported)");
+}
+
 TEST_F(MujocoTrainEval, EvalWritesResultsAndIsSeeded) {
   for (const char* m : {"bc-oh", "residual"}) {
     const std::string out = std::string("eval_") + m;
