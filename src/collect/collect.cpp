@@ -42,6 +42,16 @@ std::string episode_file_name(int index) {
   return name;
 }
 
+std::optional<nlohmann::json> recorded_collect_settings(const std::string& folder) {
+  const std::string manifest = folder + "/collect.json";
+  if (!fs::exists(manifest)) return std::nullopt;
+  try {
+    return nlohmann::json::parse(read_file_bytes(manifest)).at("settings");
+  } catch (const std::exception& e) {
+    throw DataError(manifest + " is damaged (" + e.what() + ")");
+  }
+}
+
 CollectReport collect(const Settings& settings, const CollectOptions& options) {
   require_sumo("collect");
   resolve_network(settings.world.town);  // a bad town is one clear error, not one per worker
@@ -60,13 +70,14 @@ CollectReport collect(const Settings& settings, const CollectOptions& options) {
   // may differ (a folder grows by a larger collect.episodes).
   spec.claim = [&] {
     const std::string manifest = out + "/collect.json";
-    if (!fs::exists(manifest)) return;
-    nlohmann::json stored;
+    std::optional<nlohmann::json> recorded;
     try {
-      stored = nlohmann::json::parse(read_file_bytes(manifest)).at("settings");
-    } catch (const std::exception& e) {
-      throw DataError(manifest + " is damaged (" + e.what() + "): collect into another --out folder");
+      recorded = recorded_collect_settings(out);
+    } catch (const DataError& e) {
+      throw DataError(std::string(e.what()) + ": collect into another --out folder");
     }
+    if (!recorded) return;
+    const nlohmann::json& stored = *recorded;
     // Keys the record lacks (written before they existed) read as their defaults, the behaviour
     // of their time: through settings_from_json, or, for a record it cannot read back (DAgger's
     // rollout folders hold derived seeds beyond a config's range), the record over the defaults.

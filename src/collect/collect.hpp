@@ -3,8 +3,11 @@
 // per process), one HDF5 file each, resumable.
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "app/settings.hpp"
 #include "collect/expert_episode.hpp"
@@ -31,6 +34,11 @@ struct CollectReport {
 
 // File name of episode `index` inside the output folder.
 std::string episode_file_name(int index);
+
+// The settings a finished data folder records (its collect.json's "settings"), as written;
+// nullopt when the folder has no collect.json. Throws DataError naming the file when it is
+// damaged.
+std::optional<nlohmann::json> recorded_collect_settings(const std::string& folder);
 
 // Records settings.collect.episodes episodes into settings.collect.out. Episodes whose file
 // is already complete are kept and skipped. Throws Error when a worker fails twice.

@@ -7,11 +7,13 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "app/settings.hpp"
+#include "collect/collect.hpp"
 #include "collect/expert_episode.hpp"
 #include "core/error.hpp"
 #include "core/atomic_file.hpp"
@@ -65,17 +67,11 @@ class CameraReplay {
  public:
   explicit CameraReplay(const std::string& data) {
     const std::string manifest = data + "/collect.json";
-    if (!std::filesystem::exists(manifest))
+    const std::optional<json> recorded = recorded_collect_settings(data);
+    if (!recorded)
       throw DataError(manifest + " is missing: the camera's copycat probe replays the collected "
                       "episodes with the settings it records");
-    try {
-      settings_ = settings_from_json(json::parse(read_file_bytes(manifest)).at("settings"),
-                                     manifest);
-    } catch (const DataError&) {
-      throw;
-    } catch (const std::exception& e) {
-      throw DataError(manifest + " is damaged (" + e.what() + ")");
-    }
+    settings_ = settings_from_json(*recorded, manifest);
     world_ = std::make_unique<World>(settings_);
   }
 

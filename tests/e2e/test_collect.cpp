@@ -379,6 +379,15 @@ TEST(Collect, AFolderOfOtherSettingsIsNotAddedTo) {
   ASSERT_EQ(test::split_lines(r.err).size(), 1u) << r.err;
   EXPECT_NE(r.err.find("sense.view \"bev\" -> \"camera\""), std::string::npos) << r.err;
   EXPECT_EQ(episode_files(out).size(), 3u);
+  // A damaged record is named, and the folder is left as it is.
+  test::write_text(out + "/collect.json", "{\"settings\": ");
+  r = collect_cli(a, out, 4, 1);
+  EXPECT_EQ(r.exit_code, 1) << r.describe();
+  ASSERT_EQ(test::split_lines(r.err).size(), 1u) << r.err;
+  EXPECT_NE(r.err.find("collect.json is damaged"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("another --out folder"), std::string::npos) << r.err;
+  EXPECT_EQ(episode_files(out).size(), 3u);
+  EXPECT_EQ(test::read_text(out + "/collect.json"), "{\"settings\": ");
 }
 
 }  // namespace
