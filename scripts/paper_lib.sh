@@ -27,15 +27,14 @@ keep_file() {
 }
 
 # kept_json FILE CMD...: CMD's standard output as FILE (a JSON report), kept in $KEEP; a kept
-# FILE is not measured again, and FILE appears whole or not at all.
+# FILE is not measured again, and FILE appears whole or not at all. A FILE without its kept copy
+# (the kept one deleted to measure it again, or left by another binary) is measured again.
 kept_json() {
   local file=$1; shift
   [[ -f $(kept_of "$file") ]] && return
-  if [[ ! -f $file ]]; then
-    mkdir -p "$(dirname "$file")"
-    "$@" > "$file.tmp" || { rm -f "$file.tmp"; echo "error: no $file (its command failed)" >&2; return 1; }
-    mv "$file.tmp" "$file"
-  fi
+  mkdir -p "$(dirname "$file")"
+  "$@" > "$file.tmp" || { rm -f "$file.tmp"; echo "error: no $file (its command failed)" >&2; return 1; }
+  mv "$file.tmp" "$file"
   keep_file "$file"
 }
 

@@ -187,6 +187,18 @@ class KeptJsonTest(TempDirCase):
         with open(self.path("keep")) as f:
             self.assertEqual(f.read(), '{"kept": 1}')
 
+    def test_a_report_without_its_kept_copy_is_measured_again(self):
+        os.makedirs(os.path.dirname(self.path("out")))
+        with open(self.path("out"), "w") as f:
+            f.write('{"stale": 1}')
+        r = self.kept_json("""bash -c 'echo run >> "$CALLS"; echo "{\\"a\\": 2}"'""")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(self.dir, "calls")) as f:
+            self.assertEqual(f.read(), "run\n")
+        for root in ("out", "keep"):
+            with open(self.path(root)) as f:
+                self.assertEqual(json.load(f), {"a": 2})
+
     def test_a_failed_command_leaves_no_report(self):
         r = self.kept_json("""bash -c 'echo "{\\"half"; exit 3'""")
         self.assertNotEqual(r.returncode, 0)
