@@ -4,7 +4,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <filesystem>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -16,7 +15,6 @@
 #include "collect/collect.hpp"
 #include "collect/expert_episode.hpp"
 #include "core/error.hpp"
-#include "core/atomic_file.hpp"
 #include "data/h5_episode.hpp"
 #include "datasets/episode_set.hpp"
 #include "inference/policy_runner.hpp"
