@@ -808,20 +808,27 @@ ComparisonReport render_power(const ReportTable& table, const std::string& key, 
                    "half-width now | seeds needed | seeds needed at 4x tasks |\n"
                    "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
   nlohmann::json cells = nlohmann::json::array();
+  bool one_seed = false;
   for (const std::string& label : table.labels)
     for (const auto& [column, seeds] : runs_by_column(table, label, key)) {
       const VarianceComponents v = variance_components(seeds);
       const PowerPlan p = power(v, delta / 100.0);
+      // One seed shows no spread between seeds: its plan counts the episodes' noise alone, so
+      // the seeds it needs are a lower bound and its seed sd is unknown, not 0.
+      const bool known = v.seeds > 1;
+      one_seed = one_seed || !known;
+      const std::string at_least = known ? "" : "\u2265 ";
       md += "| " + label + " | " + column + " | " + std::to_string(v.seeds) + " | " +
             format_number(v.episodes_per_seed, "%.0f") + " | " +
-            pct(std::sqrt(v.seed_variance)) + " | " + pct(std::sqrt(v.episode_variance)) +
-            " | " + pct(p.rate_half_width) + " | " + pct(p.difference_half_width) + " | " +
-            std::to_string(p.seeds_needed) + " | " + std::to_string(p.seeds_needed_4x_tasks) +
-            " |\n";
+            (known ? pct(std::sqrt(v.seed_variance)) : "n/a") + " | " +
+            pct(std::sqrt(v.episode_variance)) + " | " + pct(p.rate_half_width) + " | " +
+            pct(p.difference_half_width) + " | " + at_least + std::to_string(p.seeds_needed) +
+            " | " + at_least + std::to_string(p.seeds_needed_4x_tasks) + " |\n";
       cells.push_back({{"label", label},
                        {"condition", column},
                        {"seeds", v.seeds},
                        {"episodes_per_seed", v.episodes_per_seed},
+                       {"seed_variance_known", known},
                        {"seed_variance", v.seed_variance},
                        {"episode_variance", v.episode_variance},
                        {"rate_half_width", p.rate_half_width},
@@ -830,6 +837,10 @@ ComparisonReport render_power(const ReportTable& table, const std::string& key, 
                        {"seeds_needed_4x_tasks", p.seeds_needed_4x_tasks}});
     }
   if (cells.empty()) md += "\n(no run holds its episodes: nothing to plan from)\n";
+  if (one_seed)
+    md += "\nn/a, \u2265: a row of one seed has no seed sd to measure; its half-widths and the "
+          "seeds it needs count the episodes' noise alone, so the seeds needed are at least "
+          "those shown.\n";
   return {md, nlohmann::json({{"metric", key}, {"delta_points", delta}, {"cells", cells}}).dump()};
 }
 

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -706,6 +707,38 @@ TEST(ReportIntervals, RatesGetTheirIntervalComparisonsAndPower) {
                                               "--compare-metric", "stall_rate"}),
                                "not a rate of episodes");
   EXPECT_TRUE(has(line, "is not a share of episodes")) << line;
+}
+
+// A label with one seed has no seed variance to measure: its power row says so (seed sd n/a,
+// the seeds needed a lower bound) instead of planning as if the seeds agreed exactly.
+TEST(ReportIntervals, OneSeedsPowerRowIsALowerBound) {
+  TempDir dir("cdtest-report");
+  const std::vector<std::vector<std::string>> one = {
+      {"success", "collision"}, {"stuck", "success"}, {"success", "success"}, {"collision", "stuck"}};
+  const std::vector<std::vector<std::string>> other = {
+      {"success", "success"}, {"success", "stuck"}, {"collision", "success"}, {"success", "success"}};
+  put(dir / "runs/town-a-regular/a/seed0", with_episodes("A", "town-a-regular", one));
+  put(dir / "runs/town-a-regular/b/seed0", with_episodes("B", "town-a-regular", one));
+  put(dir / "runs/town-a-regular/b/seed1", with_episodes("B", "town-a-regular", other));
+  CommandResult r = test::run_cli({"report", dir / "runs", "--metrics", "outcomes", "--power"});
+  ASSERT_EQ(r.exit_code, 0) << r.describe();
+  // A: 1 seed of 8 episodes (4 successes); by hand, the episode variance 0.5 * 0.5 * 8 / 7 and
+  // seeds_for(8) = ceil(2 * 7.849 * (2/7) / 8 / 0.01) = ceil(56.07) = 57.
+  std::string a_row, b_row;
+  std::istringstream lines(r.out);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind("| A | town-a-regular |", 0) == 0) a_row = line;
+    if (line.rfind("| B | town-a-regular |", 0) == 0) b_row = line;
+  }
+  EXPECT_TRUE(has(a_row, "| 1 | 8 | n/a | 53.5 |")) << a_row;
+  EXPECT_TRUE(has(a_row, "| \u2265 57 | \u2265 15 |")) << a_row;
+  EXPECT_FALSE(has(b_row, "n/a")) << b_row;
+  EXPECT_FALSE(has(b_row, "\u2265")) << b_row;
+  EXPECT_TRUE(has(r.out, "a row of one seed has no seed sd to measure")) << r.out;
+  CommandResult j = test::run_cli({"report", dir / "runs", "--metrics", "outcomes", "--power", "--json"});
+  ASSERT_EQ(j.exit_code, 0) << j.describe();
+  for (const auto& cell : nlohmann::json::parse(j.out)["power"]["cells"])
+    EXPECT_EQ(cell["seed_variance_known"].get<bool>(), cell["label"] == "B") << cell.dump();
 }
 
 // MuJoCo-Image runs (results.json with `env`, per-episode returns): the IQM of the returns over
