@@ -684,6 +684,11 @@ std::map<std::string, SeedRuns> runs_by_column(const ReportTable& table, const s
 
 std::string pct(double v) { return format_number(100.0 * v, "%.1f"); }
 
+// A comparison's verdict as the table shows it: marked interim where a side had one seed.
+std::string verdict_cell(const Comparison& c) {
+  return verdict_text(c.verdict) + (c.episode_only ? " (one seed: interim)" : "");
+}
+
 nlohmann::json comparison_json(const Comparison& c) {
   return {{"difference", c.difference}, {"lo", c.lo},   {"hi", c.hi},
           {"p_improvement", c.p_improvement}, {"verdict", verdict_text(c.verdict)},
@@ -764,7 +769,7 @@ ComparisonReport render_comparison(const ReportTable& table, const std::string& 
     const Interval ia = rate_interval(sa), ib = rate_interval(jt->second);
     md += "| " + column + " | " + pct(ia.mean) + " | " + pct(ib.mean) + " | " +
           pct(c.difference) + " [" + pct(c.lo) + ", " + pct(c.hi) + "] | " +
-          format_number(c.p_improvement, "%.2f") + " | " + verdict_text(c.verdict) + " |\n";
+          format_number(c.p_improvement, "%.2f") + " | " + verdict_cell(c) + " |\n";
     nlohmann::json j = comparison_json(c);
     j["condition"] = column;
     j["a"] = ia.mean;
@@ -789,11 +794,17 @@ ComparisonReport render_comparison(const ReportTable& table, const std::string& 
     const Comparison c = judged(compare(all_a, all_b));
     md += "| over " + std::to_string(all_a.size()) + " conditions | | | " + pct(c.difference) +
           " [" + pct(c.lo) + ", " + pct(c.hi) + "] | " + format_number(c.p_improvement, "%.2f") +
-          " | " + verdict_text(c.verdict) + " |\n";
+          " | " + verdict_cell(c) + " |\n";
     out["over_conditions"] = comparison_json(c);
   } else if (all_a.size() > 1) {
     md += "\n(no row over conditions: a label has different seed counts across them)\n";
   }
+  bool interim = false;
+  for (size_t k = 0; k < all_a.size(); ++k)
+    interim = interim || all_a[k].size() == 1 || all_b[k].size() == 1;
+  if (interim)
+    md += "\n(one seed: interim): a side has one training seed, so its interval counts the "
+          "episodes' noise alone and says nothing of another training of the same method.\n";
   return {md, out.dump()};
 }
 

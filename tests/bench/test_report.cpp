@@ -666,6 +666,10 @@ TEST(ReportIntervals, RatesGetTheirIntervalComparisonsAndPower) {
   EXPECT_DOUBLE_EQ(one["p_improvement"].get<double>(), want_c.p_improvement);
   EXPECT_EQ(one["verdict"], verdict_text(want_c.verdict));
   EXPECT_TRUE(j["compare"].contains("over_conditions")) << c.out;
+  CommandResult md = test::run_cli({"report", dir / "runs", "--compare", "A", "B"});
+  ASSERT_EQ(md.exit_code, 0) << md.describe();
+  EXPECT_TRUE(has(md.out, "| A better |")) << md.out;  // three seeds a side: not interim
+  EXPECT_FALSE(has(md.out, "interim")) << md.out;
   const PowerPlan want_p = power(variance_components(seeds_of(a_seeds)), 0.10);
   bool found = false;
   for (const auto& p : j["power"]["cells"])
@@ -710,8 +714,9 @@ TEST(ReportIntervals, RatesGetTheirIntervalComparisonsAndPower) {
 }
 
 // A label with one seed has no seed variance to measure: its power row says so (seed sd n/a,
-// the seeds needed a lower bound) instead of planning as if the seeds agreed exactly.
-TEST(ReportIntervals, OneSeedsPowerRowIsALowerBound) {
+// the seeds needed a lower bound) instead of planning as if the seeds agreed exactly, and a
+// comparison with it marks its verdict interim.
+TEST(ReportIntervals, OneSeedIsMarkedInPowerAndComparisons) {
   TempDir dir("cdtest-report");
   const std::vector<std::vector<std::string>> one = {
       {"success", "collision"}, {"stuck", "success"}, {"success", "success"}, {"collision", "stuck"}};
@@ -739,6 +744,16 @@ TEST(ReportIntervals, OneSeedsPowerRowIsALowerBound) {
   ASSERT_EQ(j.exit_code, 0) << j.describe();
   for (const auto& cell : nlohmann::json::parse(j.out)["power"]["cells"])
     EXPECT_EQ(cell["seed_variance_known"].get<bool>(), cell["label"] == "B") << cell.dump();
+
+  CommandResult c = test::run_cli({"report", dir / "runs", "--compare", "A", "B"});
+  ASSERT_EQ(c.exit_code, 0) << c.describe();
+  EXPECT_TRUE(has(c.out, "| not resolved (one seed: interim) |")) << c.out;
+  EXPECT_TRUE(has(c.out, "counts the episodes' noise alone")) << c.out;
+  CommandResult cj = test::run_cli({"report", dir / "runs", "--compare", "A", "B", "--json"});
+  ASSERT_EQ(cj.exit_code, 0) << cj.describe();
+  const nlohmann::json row = nlohmann::json::parse(cj.out)["compare"]["conditions"][0];
+  EXPECT_TRUE(row["episode_only"].get<bool>()) << row.dump();
+  EXPECT_EQ(row["verdict"], "not resolved") << row.dump();  // the JSON keeps the plain verdict
 }
 
 // MuJoCo-Image runs (results.json with `env`, per-episode returns): the IQM of the returns over
