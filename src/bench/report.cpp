@@ -749,6 +749,7 @@ ComparisonReport render_comparison(const ReportTable& table, const std::string& 
                       "success_rate, collision_rate, copycat_rate) or iqm_return");
   const auto ra = runs_by_column(table, a, key), rb = runs_by_column(table, b, key);
   std::vector<SeedRuns> all_a, all_b;
+  bool interim = false;  // a condition where a side had one seed
   // Success is the one rate where more is better; for the failure rates a lower rate wins.
   const bool higher_better = key == "success_rate";
   auto judged = [higher_better](Comparison c) {
@@ -766,6 +767,7 @@ ComparisonReport render_comparison(const ReportTable& table, const std::string& 
     if (jt == rb.end() || sa.front().per_task.size() != jt->second.front().per_task.size())
       continue;
     const Comparison c = judged(compare(sa, jt->second));
+    interim = interim || c.episode_only;
     const Interval ia = rate_interval(sa), ib = rate_interval(jt->second);
     md += "| " + column + " | " + pct(ia.mean) + " | " + pct(ib.mean) + " | " +
           pct(c.difference) + " [" + pct(c.lo) + ", " + pct(c.hi) + "] | " +
@@ -799,9 +801,6 @@ ComparisonReport render_comparison(const ReportTable& table, const std::string& 
   } else if (all_a.size() > 1) {
     md += "\n(no row over conditions: a label has different seed counts across them)\n";
   }
-  bool interim = false;
-  for (size_t k = 0; k < all_a.size(); ++k)
-    interim = interim || all_a[k].size() == 1 || all_b[k].size() == 1;
   if (interim)
     md += "\n(one seed: interim): a side has one training seed, so its interval counts the "
           "episodes' noise alone and says nothing of another training of the same method.\n";
